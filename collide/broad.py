@@ -1,0 +1,242 @@
+"""Broad phase: which objects, and which BVH leaves of two objects, may touch.
+
+Two levels:
+
+1. Between objects, per frame: world boxes of whole objects, then
+   ``sweep_and_prune`` (sort box starts along one axis, sweep) so that N
+   objects never cost N² box tests.
+2. Between two objects: ``overlapping_leaves`` descends both BVHs in tandem
+   with an explicit stack and collects the leaf pairs whose boxes overlap under
+   one of two rules:
+
+   - ``RULE_POSE``: the objects at one pose. B's node boxes become oriented
+     boxes in A's body frame, tested against A's axis-aligned node boxes with
+     the separating-axis theorem (15 axes).
+   - ``RULE_SWEPT``: the objects moving from pose 0 to pose 1 with every
+     vertex on a straight line. A body box's world points stay inside the
+     union of its world boxes at both ends (each point moves on a segment
+     between its two end positions), so that union bounds the motion.
+
+Poses are passed as ``pose`` float64 (4, 3, 4): rows [R | p] of A at pose 0,
+A at pose 1, B at pose 0, B at pose 1 (world x = R @ body x + p); RULE_POSE
+reads only rows 0 and 2.
+
+Every box test is widened by ``margin`` (scene length units) so that rounding
+never drops a pair the exact narrow phase would report.
+"""
+import numpy as np
+from numba import njit
+
+RULE_POSE = 0
+RULE_SWEPT = 1
+
+#: added to |R| entries of the SAT test so that near-parallel edge axes
+#: (cross products close to zero) cannot cause a false separation
+_ABS_R_EPS = 1e-12
+
+
+# --- boxes in the world -------------------------------------------------------------
+
+@njit(cache=True)
+def world_box(lo, hi, rp):
+    """World AABB of the body box [lo, hi] (3,) under rp = [R | p] (3, 4).
+
+    Returns (world_lo, world_hi), each (3,).
+    """
+    w_lo = np.empty(3)
+    w_hi = np.empty(3)
+    for i in range(3):
+        c = rp[i, 3]
+        e = 0.0
+        for j in range(3):
+            mid = 0.5 * (lo[j] + hi[j])
+            half = 0.5 * (hi[j] - lo[j])
+            c += rp[i, j] * mid
+            e += abs(rp[i, j]) * half
+        w_lo[i] = c - e
+        w_hi[i] = c + e
+    return w_lo, w_hi
+
+
+@njit(cache=True)
+def swept_world_box(lo, hi, rp0, rp1, margin):
+    """World AABB bounding the body box [lo, hi] moving linearly from rp0 to rp1,
+    widened by margin."""
+    lo0, hi0 = world_box(lo, hi, rp0)
+    lo1, hi1 = world_box(lo, hi, rp1)
+    return np.minimum(lo0, lo1) - margin, np.maximum(hi0, hi1) + margin
+
+
+@njit(cache=True)
+def boxes_overlap(lo_a, hi_a, lo_b, hi_b):
+    """Closed boxes share a point."""
+    for i in range(3):
+        if lo_a[i] > hi_b[i] or lo_b[i] > hi_a[i]:
+            return False
+    return True
+
+
+# --- level 1: object pairs ----------------------------------------------------------
+
+@njit(cache=True)
+def sweep_and_prune(lo, hi):
+    """Pairs (a, b), a < b, of overlapping closed boxes.
+
+    lo, hi float64 (N, 3) -> int64 (K, 2), sorted by (a, b).
+    Sorts box starts along the axis of largest spread and sweeps, so the cost
+    is O(N log N + K) for boxes that are not all stacked along that axis.
+    """
+    n = lo.shape[0]
+    spread = np.zeros(3)
+    for a in range(3):
+        if n > 0:
+            spread[a] = lo[:, a].max() - lo[:, a].min()
+    axis = int(np.argmax(spread))
+    order = np.argsort(lo[:, axis], kind="mergesort")
+    pairs = np.empty((max(n, 4), 2), np.int64)
+    k = 0
+    for s in range(n):
+        i = order[s]
+        for r in range(s + 1, n):
+            j = order[r]
+            if lo[j, axis] > hi[i, axis]:
+                break
+            if boxes_overlap(lo[i], hi[i], lo[j], hi[j]):
+                if k == pairs.shape[0]:
+                    grown = np.empty((2 * k, 2), np.int64)
+                    grown[:k] = pairs
+                    pairs = grown
+                pairs[k, 0] = min(i, j)
+                pairs[k, 1] = max(i, j)
+                k += 1
+    pairs = pairs[:k]
+    sort = np.argsort(pairs[:, 0] * n + pairs[:, 1])
+    return pairs[sort].copy()
+
+
+# --- level 2: tandem descent --------------------------------------------------------
+
+@njit(cache=True)
+def relative_pose(rp_a, rp_b):
+    """[R | t] (3, 4) mapping B's body frame into A's body frame."""
+    rel = np.empty((3, 4))
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for k in range(3):
+                s += rp_a[k, i] * rp_b[k, j]
+            rel[i, j] = s
+        s = 0.0
+        for k in range(3):
+            s += rp_a[k, i] * (rp_b[k, 3] - rp_a[k, 3])
+        rel[i, 3] = s
+    return rel
+
+
+@njit(cache=True)
+def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, margin):
+    """Box A (axis-aligned in A's frame) and box B (in B's frame, placed in A's
+    frame by rel = [R | t]) overlap by the separating-axis test (15 axes)."""
+    ea = 0.5 * (hi_a - lo_a)
+    eb = 0.5 * (hi_b - lo_b)
+    t = np.empty(3)
+    for i in range(3):
+        c = rel[i, 3] - 0.5 * (lo_a[i] + hi_a[i])
+        for j in range(3):
+            c += rel[i, j] * 0.5 * (lo_b[j] + hi_b[j])
+        t[i] = c
+    r = rel[:, :3]
+    abs_r = np.abs(r) + _ABS_R_EPS
+    # axes of A
+    for i in range(3):
+        rb = eb[0] * abs_r[i, 0] + eb[1] * abs_r[i, 1] + eb[2] * abs_r[i, 2]
+        if abs(t[i]) > ea[i] + rb + margin:
+            return False
+    # axes of B
+    for j in range(3):
+        ra = ea[0] * abs_r[0, j] + ea[1] * abs_r[1, j] + ea[2] * abs_r[2, j]
+        tj = t[0] * r[0, j] + t[1] * r[1, j] + t[2] * r[2, j]
+        if abs(tj) > ra + eb[j] + margin:
+            return False
+    # cross products of A's axis i with B's axis j
+    for i in range(3):
+        i1 = (i + 1) % 3
+        i2 = (i + 2) % 3
+        for j in range(3):
+            j1 = (j + 1) % 3
+            j2 = (j + 2) % 3
+            ra = ea[i1] * abs_r[i2, j] + ea[i2] * abs_r[i1, j]
+            rb = eb[j1] * abs_r[i, j2] + eb[j2] * abs_r[i, j1]
+            d = t[i2] * r[i1, j] - t[i1] * r[i2, j]
+            if abs(d) > ra + rb + margin:
+                return False
+    return True
+
+
+@njit(cache=True)
+def _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, margin):
+    if rule == RULE_POSE:
+        return oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, margin)
+    lo_a, hi_a = swept_world_box(lo[na], hi[na], pose[0], pose[1], margin)
+    lo_b, hi_b = swept_world_box(lo[nb], hi[nb], pose[2], pose[3], margin)
+    return boxes_overlap(lo_a, hi_a, lo_b, hi_b)
+
+
+@njit(cache=True)
+def _half_area(lo, hi):
+    d = hi - lo
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+
+
+@njit(cache=True)
+def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, rule, margin, out):
+    """Leaf pairs of two BVHs whose boxes overlap under ``rule``.
+
+    lo, hi, first, count: node arrays holding both trees (see bvh.py; ``first``
+    of inner nodes indexes these same arrays). root_a, root_b: root nodes.
+    pose float64 (4, 3, 4): see module docstring. out: int64 (cap, 2) buffer,
+    grown when full. Returns (out, k): rows out[:k] are (leaf_a, leaf_b).
+    Node pairs are visited in a fixed order, so results are deterministic.
+    """
+    rel = relative_pose(pose[0], pose[2])
+    stack = np.empty((256, 2), np.int64)
+    stack[0, 0] = root_a
+    stack[0, 1] = root_b
+    top = 1
+    k = 0
+    while top > 0:
+        top -= 1
+        na = stack[top, 0]
+        nb = stack[top, 1]
+        if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, margin):
+            continue
+        leaf_a = count[na] > 0
+        leaf_b = count[nb] > 0
+        if leaf_a and leaf_b:
+            if k == out.shape[0]:
+                grown = np.empty((2 * k, 2), np.int64)
+                grown[:k] = out
+                out = grown
+            out[k, 0] = na
+            out[k, 1] = nb
+            k += 1
+            continue
+        if top + 2 > stack.shape[0]:
+            grown = np.empty((2 * stack.shape[0], 2), np.int64)
+            grown[:top] = stack[:top]
+            stack = grown
+        # open the node that is not a leaf, or the larger of two inner nodes
+        if leaf_b or (not leaf_a and _half_area(lo[na], hi[na]) >= _half_area(lo[nb], hi[nb])):
+            child = first[na]
+            stack[top, 0] = child + 1
+            stack[top, 1] = nb
+            stack[top + 1, 0] = child
+            stack[top + 1, 1] = nb
+        else:
+            child = first[nb]
+            stack[top, 0] = na
+            stack[top, 1] = child + 1
+            stack[top + 1, 0] = na
+            stack[top + 1, 1] = child
+        top += 2
+    return out, k

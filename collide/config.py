@@ -1,0 +1,49 @@
+"""Tolerances and defaults, in one place.
+
+Every number here has a unit and a reason; change them here, never inline.
+"""
+
+# --- input validation -------------------------------------------------------
+#: Quaternions whose norm is within this of 1 are normalised (with a warning);
+#: others are input errors (SPEC §2.2). Unitless.
+QUATERNION_NORM_TOL = 1e-3
+
+#: Pose matrices must satisfy max|R^T R - I| <= this (SPEC §2.2). Unitless.
+ROTATION_ORTHONORMAL_TOL = 1e-6
+
+#: The last row of a pose matrix must be within this of (0, 0, 0, 1). Unitless.
+MATRIX_LAST_ROW_TOL = 1e-9
+
+# --- broad phase -------------------------------------------------------------
+#: Bounding boxes are widened by this fraction of the largest coordinate
+#: magnitude involved (plus BOX_MARGIN_ABS), so that float rounding in box
+#: transforms can never make the broad phase drop a pair that the exact narrow
+#: phase would report. 1e-12 is ~4500 ulps of double precision: far above the
+#: rounding of a 3x3 rotation applied to a box, far below any real gap.
+BOX_MARGIN_REL = 1e-12
+
+#: Absolute floor for the box margin, in scene length units.
+BOX_MARGIN_ABS = 1e-300
+
+# --- continuous mode ----------------------------------------------------------
+#: Default time tolerance of reported contact begin/end, as a fraction of the
+#: frame interval (SPEC §3).
+TIME_TOL = 1e-6
+
+#: Distance below which surfaces count as touching in continuous mode, as a
+#: fraction of the scene size (SPEC §3: pairs farther apart are never reported).
+DIST_TOL_REL = 1e-9
+
+#: scan warns when an object turns by more than this between consecutive frames
+#: (linear-vertex interpolation departs from rigid motion). Degrees.
+ROTATION_WARN_DEG = 10.0
+
+# --- BVH ----------------------------------------------------------------------
+#: Default maximum number of triangles per BVH leaf.
+DEFAULT_LEAF_SIZE = 4
+
+#: Number of bins per axis of the binned SAH builder.
+SAH_BINS = 16
+
+#: SAH cost of visiting a node relative to testing one primitive.
+SAH_TRAVERSAL_COST = 1.0

@@ -1,0 +1,142 @@
+"""Discrete detection: which objects touch, and through which triangles, at frame poses.
+
+``scan_frames`` is the kernel for one chunk of frames (single-threaded,
+releases the GIL so chunks run in parallel threads): per frame it places every
+object's root box in the world, sweeps and prunes to candidate object pairs,
+descends each pair's BVHs (broad.overlapping_leaves with RULE_POSE) and tests
+triangle pairs exactly (narrow.intersecting_triangles).
+
+Output rows (int64):
+- hits (H, 6): frame, object_a, object_b, number of intersecting triangle
+  pairs, tri_a, tri_b (the lexicographically smallest intersecting pair).
+- pairs (P, 5): frame, object_a, object_b, tri_a, tri_b (only when collected).
+"""
+import numpy as np
+from numba import njit
+
+from . import config
+from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune, world_box
+from .narrow import append_row, intersecting_triangles
+from .packed import to_world
+
+#: pair_filter values: which object pairs a kernel call tests
+ALL_PAIRS = 0
+SKIP_STATIC_PAIRS = 1   # pairs of two static objects are skipped
+ONLY_STATIC_PAIRS = 2   # only pairs of two static objects
+
+
+@njit(cache=True)
+def object_world_boxes(ps, rp, margin_out):
+    """World boxes (N, 3) lo and hi of every object's root box at poses rp (N, 3, 4).
+
+    Also fills margin_out (N,): each object's rounding margin (length units).
+    """
+    n = rp.shape[0]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    for o in range(n):
+        mesh = ps.object_mesh[o]
+        root = ps.root[mesh]
+        scale = abs(rp[o, 0, 3]) + abs(rp[o, 1, 3]) + abs(rp[o, 2, 3]) + ps.radius[mesh]
+        margin_out[o] = config.BOX_MARGIN_REL * scale + config.BOX_MARGIN_ABS
+        w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp[o])
+        lo[o] = w_lo - margin_out[o]
+        hi[o] = w_hi + margin_out[o]
+    return lo, hi
+
+
+@njit(cache=True)
+def ensure_world(ps, rp, o, frame, stamp, world):
+    """Transform object o's vertices to the world buffer once per frame."""
+    if stamp[o] == frame:
+        return
+    mesh = ps.object_mesh[o]
+    body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
+    to_world(body, rp[o], world, ps.world_start[o])
+    stamp[o] = frame
+
+
+@njit(cache=True)
+def pair_selected(pair_filter, static, a, b):
+    both_static = static[a] and static[b]
+    if pair_filter == SKIP_STATIC_PAIRS:
+        return not both_static
+    if pair_filter == ONLY_STATIC_PAIRS:
+        return both_static
+    return True
+
+
+@njit(cache=True)
+def _smallest_pair(tri, n):
+    best = 0
+    for k in range(1, n):
+        if tri[k, 0] < tri[best, 0] or (tri[k, 0] == tri[best, 0] and tri[k, 1] < tri[best, 1]):
+            best = k
+    return tri[best, 0], tri[best, 1]
+
+
+@njit(cache=True, nogil=True)
+def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect_pairs):
+    """Discrete scan of frames [frame_start, frame_stop).
+
+    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,).
+    Returns (hits int64 (H, 6), pairs int64 (P, 5)); see module docstring.
+    """
+    n_objects = poses.shape[1]
+    world = np.empty((ps.world_start[n_objects], 3))
+    stamp = np.full(n_objects, -1, np.int64)
+    margin = np.empty(n_objects)
+    hits = np.empty((16, 6), np.int64)
+    n_hits = 0
+    pairs = np.empty((16, 5), np.int64)
+    n_pairs = 0
+    leaves = np.empty((256, 2), np.int64)
+    tri = np.empty((64, 2), np.int64)
+    pose = np.empty((4, 3, 4))
+    hit = np.empty(6, np.int64)
+    row = np.empty(5, np.int64)
+    for f in range(frame_start, frame_stop):
+        rp = poses[f]
+        lo, hi = object_world_boxes(ps, rp, margin)
+        candidates = sweep_and_prune(lo, hi)
+        for c in range(candidates.shape[0]):
+            a = candidates[c, 0]
+            b = candidates[c, 1]
+            if not pair_selected(pair_filter, static, a, b):
+                continue
+            mesh_a = ps.object_mesh[a]
+            mesh_b = ps.object_mesh[b]
+            pose[0] = rp[a]
+            pose[1] = rp[a]
+            pose[2] = rp[b]
+            pose[3] = rp[b]
+            leaves, n_leaves = overlapping_leaves(
+                ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
+                ps.root[mesh_a], ps.root[mesh_b], pose, RULE_POSE, margin[a] + margin[b], leaves)
+            if n_leaves == 0:
+                continue
+            ensure_world(ps, rp, a, f, stamp, world)
+            ensure_world(ps, rp, b, f, stamp, world)
+            tri, n_tri = intersecting_triangles(
+                leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+                ps.face_start[mesh_a], ps.face_start[mesh_b],
+                world, ps.world_start[a], ps.world_start[b], tri, 0)
+            if n_tri == 0:
+                continue
+            tri_a, tri_b = _smallest_pair(tri, n_tri)
+            hit[0] = f
+            hit[1] = a
+            hit[2] = b
+            hit[3] = n_tri
+            hit[4] = tri_a
+            hit[5] = tri_b
+            hits, n_hits = append_row(hits, n_hits, hit)
+            if collect_pairs:
+                for k in range(n_tri):
+                    row[0] = f
+                    row[1] = a
+                    row[2] = b
+                    row[3] = tri[k, 0]
+                    row[4] = tri[k, 1]
+                    pairs, n_pairs = append_row(pairs, n_pairs, row)
+    return hits[:n_hits].copy(), pairs[:n_pairs].copy()

@@ -1,0 +1,1 @@
+"""collide command line (installed as the collide_cli package)."""

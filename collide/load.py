@@ -37,7 +37,8 @@ class Trajectory(NamedTuple):
 
 def _mesh_suffixes():
     import trimesh
-    return {"." + ext.lower() for ext in trimesh.available_formats()}
+    # point clouds (xyz) can never hold triangles; everything else trimesh reads as a mesh counts
+    return {"." + ext.lower() for ext in trimesh.exchange.load.mesh_formats() if ext != "xyz"}
 
 
 def mesh_files(folder):
@@ -55,6 +56,7 @@ def mesh_files(folder):
     found = {}
     for path in entries:
         if path.name.startswith(".") or not path.is_file() or path.suffix.lower() not in suffixes:
+            log.info("%s: not a mesh file, ignored", path)
             continue
         if path.stem in found:
             raise InputError(path, f"duplicate mesh name {path.stem!r} (also {found[path.stem].name})",
@@ -62,7 +64,7 @@ def mesh_files(folder):
         found[path.stem] = path
     if not found:
         raise InputError(folder, "no mesh files found",
-                         "files trimesh can load (" + ", ".join(sorted(s[1:] for s in suffixes)[:8]) + ", ...)")
+                         "mesh files trimesh can load (STL, OBJ, PLY, OFF, GLB, ...)")
     return found
 
 
@@ -133,7 +135,7 @@ def _float_array(h5, path, name, shape, expected):
     except (OSError, ValueError) as exc:
         raise InputError(path, f"cannot read ({str(exc)[:80]})", expected, dataset=name) from None
     if len(shape) != data.ndim or any(s is not None and s != d for s, d in zip(shape, data.shape)):
-        want = "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
+        want = "(" + ", ".join("T" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
         raise InputError(path, f"has shape {data.shape}", f"shape {want}: {expected}", dataset=name)
     if not np.isfinite(data).all():
         idx = np.argwhere(~np.isfinite(data))[0]
@@ -160,7 +162,7 @@ def _read_time(h5, path):
     steps = np.diff(time)
     if (steps <= 0).any():
         k = int(np.argmax(steps <= 0))
-        raise InputError(path, f"not strictly increasing at index {k + 1} ({time[k]!r} then {time[k + 1]!r})",
+        raise InputError(path, f"not strictly increasing at index {k + 1} ({float(time[k])!r} then {float(time[k + 1])!r})",
                          "strictly increasing times", dataset="time")
     return time
 

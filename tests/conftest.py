@@ -1,0 +1,72 @@
+"""Shared helpers: writing small scenes and running the real CLI in a subprocess."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import trimesh
+
+TESTS = Path(__file__).resolve().parent
+DATA = TESTS / "data"
+REPO = TESTS.parent
+SHARED_DATA = REPO.parent / "shared" / "data"
+
+
+def write_trajectory(path, time, names, position=None, orientation=None, order="wxyz",
+                     matrix=None, mesh=None):
+    """Write a SPEC §2.2 trajectory; pass position+orientation or matrix."""
+    with h5py.File(path, "w") as f:
+        f["time"] = np.asarray(time, dtype=np.float64)
+        f["time"].attrs["unit"] = "s"
+        f.create_dataset("objects/name", data=np.array(names, dtype=object), dtype=h5py.string_dtype())
+        if mesh is not None:
+            f.create_dataset("objects/mesh", data=np.array(mesh, dtype=object), dtype=h5py.string_dtype())
+        if matrix is not None:
+            f["poses/matrix"] = np.asarray(matrix, dtype=np.float64)
+        else:
+            f["poses/position"] = np.asarray(position, dtype=np.float64)
+            f["poses/orientation"] = np.asarray(orientation, dtype=np.float64)
+            if order is not None:
+                f["poses/orientation"].attrs["quaternion_order"] = order
+    return path
+
+
+def identity_quaternions(n_frames, n_objects, order="wxyz"):
+    q = np.zeros((n_frames, n_objects, 4))
+    q[..., 0 if order == "wxyz" else 3] = 1.0
+    return q
+
+
+def write_box(path, extents=(1.0, 1.0, 1.0), centre=(0.0, 0.0, 0.0)):
+    """An axis-aligned box mesh (12 triangles) with exact dyadic coordinates."""
+    box = trimesh.creation.box(extents=extents)
+    box.apply_translation(centre)
+    box.export(path)
+    return path
+
+
+def run_cli(*args, cwd=None, env=None):
+    """Run ``collide`` as a real process; returns CompletedProcess (text)."""
+    full_env = dict(os.environ, **(env or {}))
+    return subprocess.run([sys.executable, "-m", "collide_cli.main", *map(str, args)],
+                          cwd=cwd, env=full_env, capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture
+def two_boxes(tmp_path):
+    """Meshes folder with a static unit box 'fixed' at the origin and a unit box 'mover'
+    translated along x from -3 to +3 in 13 frames (step 0.5): the boxes touch for
+    |x| <= 1 (faces touching at |x| == 1), i.e. frames 4..8."""
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    write_box(meshes / "fixed.stl")
+    write_box(meshes / "mover.obj")
+    n = 13
+    position = np.zeros((n, 1, 3))
+    position[:, 0, 0] = np.linspace(-3.0, 3.0, n)
+    traj = write_trajectory(tmp_path / "traj.h5", np.arange(n) * 0.1, ["mover"], position,
+                            identity_quaternions(n, 1))
+    return meshes, traj

@@ -1,0 +1,133 @@
+"""Discrete scans of scenes whose contacts are known analytically."""
+import numpy as np
+import pytest
+
+import collide
+from conftest import identity_quaternions, write_box, write_trajectory
+
+
+def test_two_boxes_touch_exactly_when_faces_meet(two_boxes, tmp_path):
+    meshes, traj = two_boxes
+    result = collide.scan(meshes, traj, mode="discrete", triangle_pairs=True, workers=2)
+    c = result.contacts
+    # x = -3 + 0.5 k; unit boxes touch iff |x| <= 1 (touching faces count): k = 4..8
+    assert c["object_a"].tolist() == [0]          # mover is object 0, static 'fixed' object 1
+    assert c["object_b"].tolist() == [1]
+    assert c["frame_begin"].tolist() == [4] and c["frame_end"].tolist() == [8]
+    assert c["t_begin"][0] == pytest.approx(0.4) and c["t_end"][0] == pytest.approx(0.8)
+    assert c["kind"].tolist() == [0]
+    # the reported point is on both boxes at the first contact frame (x = -1: the face x = -0.5)
+    point = np.array([c["point_x"][0], c["point_y"][0], c["point_z"][0]])
+    assert point[0] == pytest.approx(-0.5) and np.all(np.abs(point[1:]) <= 0.5 + 1e-12)
+    pairs = result.triangle_pairs
+    assert sorted(set(pairs["frame"].tolist())) == [4, 5, 6, 7, 8]
+    assert result.object_names == ["mover", "fixed"]
+
+
+def test_contact_intervals_split_on_gaps(tmp_path):
+    """A box that enters, leaves and re-enters: two intervals, with exact frame bounds."""
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    write_box(meshes / "a.stl")
+    write_box(meshes / "b.stl")
+    x = np.array([3, 1, 0.5, 2, 2.5, 1.0, 0.75, 3])  # contact iff |x| <= 1
+    pos = np.zeros((x.size, 1, 3))
+    pos[:, 0, 0] = x
+    traj = write_trajectory(tmp_path / "t.h5", np.arange(x.size, dtype=float), ["b"], pos,
+                            identity_quaternions(x.size, 1))
+    c = collide.scan(meshes, traj, mode="discrete").contacts
+    assert list(zip(c["frame_begin"].tolist(), c["frame_end"].tolist())) == [(1, 2), (5, 6)]
+    assert c["t_begin"].tolist() == [1.0, 5.0] and c["t_end"].tolist() == [2.0, 6.0]
+
+
+def test_one_ulp_gap_is_not_contact(tmp_path):
+    """Touching faces are a contact; the next float over is not."""
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    write_box(meshes / "a.stl")
+    write_box(meshes / "b.stl")
+    x = np.array([1.0, np.nextafter(1.0, 2.0), -1.0, np.nextafter(-1.0, -2.0)])
+    pos = np.zeros((4, 1, 3))
+    pos[:, 0, 0] = x
+    traj = write_trajectory(tmp_path / "t.h5", np.arange(4.0), ["b"], pos, identity_quaternions(4, 1))
+    pairs = collide.scan(meshes, traj, mode="discrete", triangle_pairs=True).triangle_pairs
+    assert sorted(set(pairs["frame"].tolist())) == [0, 2]
+
+
+def test_shared_mesh_and_static_pairs(tmp_path):
+    """Two objects share one mesh via objects/mesh; two static meshes touch each other at
+    every frame (tested once, reported for the whole range)."""
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    write_box(meshes / "peg.stl")
+    write_box(meshes / "wall_left.stl", centre=(-5, 0, 0))
+    write_box(meshes / "wall_right.stl", centre=(-4, 0, 0))   # touches wall_left (faces at x=-4.5)
+    n = 5
+    pos = np.zeros((n, 2, 3))
+    pos[:, 0, 1] = 10.0                      # first peg: far away always
+    pos[:, 1, 0] = [10, 10, -3.0, 10, 10]    # second peg touches wall_right at frame 2
+    traj = write_trajectory(tmp_path / "t.h5", np.arange(n) * 0.5, ["peg1", "peg2"], pos,
+                            identity_quaternions(n, 2), mesh=["peg.stl", "peg"])
+    result = collide.scan(meshes, traj, mode="discrete")
+    assert result.object_names == ["peg1", "peg2", "wall_left", "wall_right"]
+    assert result.object_meshes == ["peg.stl", "peg.stl", "wall_left.stl", "wall_right.stl"]
+    c = result.contacts
+    rows = list(zip(c["object_a"].tolist(), c["object_b"].tolist(),
+                    c["frame_begin"].tolist(), c["frame_end"].tolist()))
+    assert rows == [(1, 3, 2, 2), (2, 3, 0, 4)]
+
+
+def test_frames_option_selects_a_range(two_boxes):
+    meshes, traj = two_boxes
+    result = collide.scan(meshes, traj, mode="discrete", frames="5:7")
+    assert result.frame_index.tolist() == [5, 6]
+    c = result.contacts
+    assert c["frame_begin"].tolist() == [0] and c["frame_end"].tolist() == [1]
+    assert c["t_begin"][0] == pytest.approx(0.5)
+
+
+def test_rotated_poses_matrix_and_quaternion_orders_agree(tmp_path):
+    """The same motion as wxyz quaternions, xyzw quaternions and 4x4 matrices gives the same pairs."""
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    write_box(meshes / "a.stl", extents=(2, 0.2, 0.2))
+    write_box(meshes / "b.stl", extents=(2, 0.2, 0.2))
+    n = 24
+    angle = np.linspace(0, np.pi, n)
+    c, s = np.cos(angle), np.sin(angle)
+    pos = np.zeros((n, 1, 3))
+    pos[:, 0] = [0.0, 0.5, 0.0]  # a bar spinning about z beside another: touch when crossing
+    zero = np.zeros(n)
+    wxyz = np.stack([np.cos(angle / 2), zero, zero, np.sin(angle / 2)], axis=-1)[:, None, :]
+    xyzw = np.roll(wxyz, -1, axis=-1)
+    mat = np.zeros((n, 1, 4, 4))
+    mat[:, 0, :3, :3] = np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1),
+                                  np.stack([zero, zero, zero + 1], -1)], axis=1)
+    mat[:, 0, :3, 3] = pos[:, 0]
+    mat[:, 0, 3, 3] = 1
+    results = []
+    for name, kwargs in [("w", dict(position=pos, orientation=wxyz, order="wxyz")),
+                         ("x", dict(position=pos, orientation=xyzw, order="xyzw")),
+                         ("m", dict(matrix=mat))]:
+        traj = write_trajectory(tmp_path / f"{name}.h5", np.arange(n, dtype=float), ["b"], **kwargs)
+        results.append(collide.scan(meshes, traj, mode="discrete").contacts)
+    frames = [(r["frame_begin"].tolist(), r["frame_end"].tolist()) for r in results]
+    assert frames[0] == frames[1] == frames[2]
+    # analytic: bar b (half-length 1, half-width 0.1) centred at y = 0.5 crosses bar a
+    # (|y| <= 0.1) iff sin(angle) * 1 + 0.1 * |cos(angle)| >= 0.4
+    touching = np.flatnonzero(np.abs(np.sin(angle)) + 0.1 * np.abs(np.cos(angle)) >= 0.4 - 1e-9)
+    assert frames[0] == ([int(touching[0])], [int(touching[-1])])
+
+
+def test_empty_result_has_empty_columns(tmp_path):
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    write_box(meshes / "a.stl")
+    write_box(meshes / "b.stl", centre=(5, 0, 0))
+    traj = write_trajectory(tmp_path / "t.h5", [0.0], ["a"], np.zeros((1, 1, 3)), identity_quaternions(1, 1))
+    out = tmp_path / "c.h5"
+    result = collide.scan(meshes, traj, mode="discrete", triangle_pairs=True, output=out)
+    assert all(col.size == 0 for col in result.contacts.values())
+    back = collide.read_contacts(out)
+    assert set(back.contacts) == set(result.contacts) and back.contacts["t_begin"].size == 0
+    assert back.triangle_pairs["frame"].size == 0

@@ -37,34 +37,26 @@ _ABS_R_EPS = 1e-12
 
 # --- boxes in the world -------------------------------------------------------------
 
-@njit(cache=True)
-def world_box(lo, hi, rp):
-    """World AABB of the body box [lo, hi] (3,) under rp = [R | p] (3, 4).
+@njit(cache=True, inline="always")
+def world_interval(lo, hi, rp, i):
+    """Range of world coordinate i over the body box [lo, hi] (3,) under rp = [R | p] (3, 4)."""
+    c = rp[i, 3]
+    e = 0.0
+    for j in range(3):
+        c += rp[i, j] * (0.5 * (lo[j] + hi[j]))
+        e += abs(rp[i, j]) * (0.5 * (hi[j] - lo[j]))
+    return c - e, c + e
 
-    Returns (world_lo, world_hi), each (3,).
-    """
+
+@njit(cache=True)
+def world_box(lo, hi, rp0, rp1):
+    """World AABB (lo (3,), hi (3,)) of the body box [lo, hi] over a linear motion
+    from pose rp0 to pose rp1 ((3, 4) each; pass the same pose twice for a still box)."""
     w_lo = np.empty(3)
     w_hi = np.empty(3)
     for i in range(3):
-        c = rp[i, 3]
-        e = 0.0
-        for j in range(3):
-            mid = 0.5 * (lo[j] + hi[j])
-            half = 0.5 * (hi[j] - lo[j])
-            c += rp[i, j] * mid
-            e += abs(rp[i, j]) * half
-        w_lo[i] = c - e
-        w_hi[i] = c + e
+        w_lo[i], w_hi[i] = _swept_interval(lo, hi, rp0, rp1, i)
     return w_lo, w_hi
-
-
-@njit(cache=True)
-def swept_world_box(lo, hi, rp0, rp1, margin):
-    """World AABB bounding the body box [lo, hi] moving linearly from rp0 to rp1,
-    widened by margin."""
-    lo0, hi0 = world_box(lo, hi, rp0)
-    lo1, hi1 = world_box(lo, hi, rp1)
-    return np.minimum(lo0, lo1) - margin, np.maximum(hi0, hi1) + margin
 
 
 @njit(cache=True)
@@ -133,29 +125,38 @@ def relative_pose(rp_a, rp_b):
     return rel
 
 
-@njit(cache=True)
-def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, margin):
+@njit(cache=True, inline="always")
+def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
     """Box A (axis-aligned in A's frame) and box B (in B's frame, placed in A's
-    frame by rel = [R | t]) overlap by the separating-axis test (15 axes)."""
-    ea = 0.5 * (hi_a - lo_a)
-    eb = 0.5 * (hi_b - lo_b)
-    t = np.empty(3)
-    for i in range(3):
-        c = rel[i, 3] - 0.5 * (lo_a[i] + hi_a[i])
-        for j in range(3):
-            c += rel[i, j] * 0.5 * (lo_b[j] + hi_b[j])
-        t[i] = c
-    r = rel[:, :3]
-    abs_r = np.abs(r) + _ABS_R_EPS
+    frame by rel = [R | t]) overlap by the separating-axis test (15 axes).
+
+    abs_r (3, 3) = |R| + a small epsilon, computed once per descent.
+    """
+    ea0 = 0.5 * (hi_a[0] - lo_a[0])
+    ea1 = 0.5 * (hi_a[1] - lo_a[1])
+    ea2 = 0.5 * (hi_a[2] - lo_a[2])
+    eb0 = 0.5 * (hi_b[0] - lo_b[0])
+    eb1 = 0.5 * (hi_b[1] - lo_b[1])
+    eb2 = 0.5 * (hi_b[2] - lo_b[2])
+    cb0 = 0.5 * (lo_b[0] + hi_b[0])
+    cb1 = 0.5 * (lo_b[1] + hi_b[1])
+    cb2 = 0.5 * (lo_b[2] + hi_b[2])
+    # centre of B minus centre of A, in A's frame
+    t0 = rel[0, 3] + rel[0, 0] * cb0 + rel[0, 1] * cb1 + rel[0, 2] * cb2 - 0.5 * (lo_a[0] + hi_a[0])
+    t1 = rel[1, 3] + rel[1, 0] * cb0 + rel[1, 1] * cb1 + rel[1, 2] * cb2 - 0.5 * (lo_a[1] + hi_a[1])
+    t2 = rel[2, 3] + rel[2, 0] * cb0 + rel[2, 1] * cb1 + rel[2, 2] * cb2 - 0.5 * (lo_a[2] + hi_a[2])
+    ea = (ea0, ea1, ea2)
+    eb = (eb0, eb1, eb2)
+    t = (t0, t1, t2)
     # axes of A
     for i in range(3):
-        rb = eb[0] * abs_r[i, 0] + eb[1] * abs_r[i, 1] + eb[2] * abs_r[i, 2]
+        rb = eb0 * abs_r[i, 0] + eb1 * abs_r[i, 1] + eb2 * abs_r[i, 2]
         if abs(t[i]) > ea[i] + rb + margin:
             return False
     # axes of B
     for j in range(3):
-        ra = ea[0] * abs_r[0, j] + ea[1] * abs_r[1, j] + ea[2] * abs_r[2, j]
-        tj = t[0] * r[0, j] + t[1] * r[1, j] + t[2] * r[2, j]
+        ra = ea0 * abs_r[0, j] + ea1 * abs_r[1, j] + ea2 * abs_r[2, j]
+        tj = t0 * rel[0, j] + t1 * rel[1, j] + t2 * rel[2, j]
         if abs(tj) > ra + eb[j] + margin:
             return False
     # cross products of A's axis i with B's axis j
@@ -167,25 +168,44 @@ def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, margin):
             j2 = (j + 2) % 3
             ra = ea[i1] * abs_r[i2, j] + ea[i2] * abs_r[i1, j]
             rb = eb[j1] * abs_r[i, j2] + eb[j2] * abs_r[i, j1]
-            d = t[i2] * r[i1, j] - t[i1] * r[i2, j]
+            d = t[i2] * rel[i1, j] - t[i1] * rel[i2, j]
             if abs(d) > ra + rb + margin:
                 return False
     return True
 
 
-@njit(cache=True)
-def _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, margin):
+@njit(cache=True, inline="always")
+def _swept_boxes_overlap(lo, hi, na, nb, pose, margin):
+    """World boxes of nodes na (object A) and nb (object B) over the motion overlap."""
+    for i in range(3):
+        lo_a, hi_a = _swept_interval(lo[na], hi[na], pose[0], pose[1], i)
+        lo_b, hi_b = _swept_interval(lo[nb], hi[nb], pose[2], pose[3], i)
+        if lo_a - margin > hi_b + margin or lo_b - margin > hi_a + margin:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _swept_interval(lo, hi, rp0, rp1, i):
+    """World coordinate i's range of body box [lo, hi] at both poses rp0, rp1."""
+    lo0, hi0 = world_interval(lo, hi, rp0, i)
+    lo1, hi1 = world_interval(lo, hi, rp1, i)
+    return min(lo0, lo1), max(hi0, hi1)
+
+
+@njit(cache=True, inline="always")
+def _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, abs_r, margin):
     if rule == RULE_POSE:
-        return oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, margin)
-    lo_a, hi_a = swept_world_box(lo[na], hi[na], pose[0], pose[1], margin)
-    lo_b, hi_b = swept_world_box(lo[nb], hi[nb], pose[2], pose[3], margin)
-    return boxes_overlap(lo_a, hi_a, lo_b, hi_b)
+        return oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, abs_r, margin)
+    return _swept_boxes_overlap(lo, hi, na, nb, pose, margin)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _half_area(lo, hi):
-    d = hi - lo
-    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    dx = hi[0] - lo[0]
+    dy = hi[1] - lo[1]
+    dz = hi[2] - lo[2]
+    return dx * dy + dy * dz + dz * dx
 
 
 @njit(cache=True)
@@ -199,6 +219,7 @@ def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, rule, margin,
     Node pairs are visited in a fixed order, so results are deterministic.
     """
     rel = relative_pose(pose[0], pose[2])
+    abs_r = np.abs(rel[:, :3]) + _ABS_R_EPS
     stack = np.empty((256, 2), np.int64)
     stack[0, 0] = root_a
     stack[0, 1] = root_b
@@ -208,7 +229,7 @@ def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, rule, margin,
         top -= 1
         na = stack[top, 0]
         nb = stack[top, 1]
-        if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, margin):
+        if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, abs_r, margin):
             continue
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0

@@ -39,16 +39,17 @@ def object_world_boxes(ps, rp, margin_out):
         root = ps.root[mesh]
         scale = abs(rp[o, 0, 3]) + abs(rp[o, 1, 3]) + abs(rp[o, 2, 3]) + ps.radius[mesh]
         margin_out[o] = config.BOX_MARGIN_REL * scale + config.BOX_MARGIN_ABS
-        w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp[o])
+        w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp[o], rp[o])
         lo[o] = w_lo - margin_out[o]
         hi[o] = w_hi + margin_out[o]
     return lo, hi
 
 
 @njit(cache=True)
-def ensure_world(ps, rp, o, frame, stamp, world):
-    """Transform object o's vertices to the world buffer once per frame."""
-    if stamp[o] == frame:
+def ensure_world(ps, rp, o, frame, static, stamp, world):
+    """Transform object o's vertices to the world buffer once per frame
+    (once per call for static objects)."""
+    if stamp[o] == frame or (static[o] and stamp[o] >= 0):
         return
     mesh = ps.object_mesh[o]
     body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
@@ -115,8 +116,8 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
                 ps.root[mesh_a], ps.root[mesh_b], pose, RULE_POSE, margin[a] + margin[b], leaves)
             if n_leaves == 0:
                 continue
-            ensure_world(ps, rp, a, f, stamp, world)
-            ensure_world(ps, rp, b, f, stamp, world)
+            ensure_world(ps, rp, a, f, static, stamp, world)
+            ensure_world(ps, rp, b, f, static, stamp, world)
             tri, n_tri = intersecting_triangles(
                 leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                 ps.face_start[mesh_a], ps.face_start[mesh_b],

@@ -10,7 +10,7 @@ from numba import njit
 from .predicates import triangles_intersect
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gather_triangle(world, world_base, faces, face, out):
     """out (3, 3) = world coordinates of the triangle with global face row ``face``."""
     for r in range(3):
@@ -19,7 +19,7 @@ def gather_triangle(world, world_base, faces, face, out):
             out[r, c] = world[row, c]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _triangle_boxes_overlap(p, q):
     """Exact AABB test of two triangles (min/max of the same floats)."""
     for c in range(3):

@@ -142,8 +142,14 @@ def _det3_terms(p, q, r, sign, terms, k):
 
 
 @njit(cache=True)
-def _orient3d_exact(a, b, c, d):
+def _orient3d_exact(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
+    # Scalar arguments on purpose: passing array views into a call that the
+    # fast path does not inline costs reference counting on every call.
     # det[a-d; b-d; c-d] = det[a;b;c] - det[a;b;d] + det[a;c;d] - det[b;c;d]
+    a = np.array((ax, ay, az))
+    b = np.array((bx, by, bz))
+    c = np.array((cx, cy, cz))
+    d = np.array((dx, dy, dz))
     terms = np.empty(96)
     k = _det3_terms(a, b, c, 1.0, terms, 0)
     k = _det3_terms(a, b, d, -1.0, terms, k)
@@ -152,7 +158,7 @@ def _orient3d_exact(a, b, c, d):
     return _expansion_sign(terms)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def orient3d(a, b, c, d):
     """Exact sign of det[a-d; b-d; c-d] for points a, b, c, d (3,) float64.
 
@@ -182,98 +188,101 @@ def orient3d(a, b, c, d):
         return 1
     if -det > bound:
         return -1
-    return _orient3d_exact(a, b, c, d)
+    return _orient3d_exact(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
 
 
 # --- closed segments and triangles -------------------------------------------
+# Helpers take whole (3, 3) triangle arrays plus row indices, or scalars, never
+# array views: views handed to calls cost reference counting in the hot path.
 
 @njit(cache=True)
-def _segments_intersect_2d(p, q, r, s, i, j):
-    """Closed segments pq and rs share a point, in the projection on axes (i, j)."""
-    o1 = orient2d(p[i], p[j], q[i], q[j], r[i], r[j])
-    o2 = orient2d(p[i], p[j], q[i], q[j], s[i], s[j])
-    o3 = orient2d(r[i], r[j], s[i], s[j], p[i], p[j])
-    o4 = orient2d(r[i], r[j], s[i], s[j], q[i], q[j])
+def _segments_intersect_2d(px, py, qx, qy, rx, ry, sx, sy):
+    """Closed 2-D segments pq and rs share a point."""
+    o1 = orient2d(px, py, qx, qy, rx, ry)
+    o2 = orient2d(px, py, qx, qy, sx, sy)
+    o3 = orient2d(rx, ry, sx, sy, px, py)
+    o4 = orient2d(rx, ry, sx, sy, qx, qy)
     if o1 == 0 and o2 == 0 and o3 == 0 and o4 == 0:
         # collinear: they meet iff their bounding boxes overlap on both axes
-        for ax in (i, j):
-            if max(p[ax], q[ax]) < min(r[ax], s[ax]):
-                return False
-            if max(r[ax], s[ax]) < min(p[ax], q[ax]):
-                return False
-        return True
+        return (max(px, qx) >= min(rx, sx) and max(rx, sx) >= min(px, qx)
+                and max(py, qy) >= min(ry, sy) and max(ry, sy) >= min(py, qy))
     return o1 * o2 <= 0 and o3 * o4 <= 0
 
 
 @njit(cache=True)
-def _point_in_triangle_2d(p, q0, q1, q2, i, j):
-    """Point p lies in the closed, non-degenerate triangle q0 q1 q2 (axes i, j)."""
-    s0 = orient2d(q0[i], q0[j], q1[i], q1[j], p[i], p[j])
-    s1 = orient2d(q1[i], q1[j], q2[i], q2[j], p[i], p[j])
-    s2 = orient2d(q2[i], q2[j], q0[i], q0[j], p[i], p[j])
+def _point_in_triangle_2d(px, py, ax, ay, bx, by, cx, cy):
+    """2-D point p lies in the closed, non-degenerate triangle abc."""
+    s0 = orient2d(ax, ay, bx, by, px, py)
+    s1 = orient2d(bx, by, cx, cy, px, py)
+    s2 = orient2d(cx, cy, ax, ay, px, py)
     return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
 
 
 @njit(cache=True)
-def _segment_meets_triangle_2d(a, b, q0, q1, q2, i, j):
-    """Closed segment ab meets closed triangle q0 q1 q2 in the projection (i, j)."""
-    if orient2d(q0[i], q0[j], q1[i], q1[j], q2[i], q2[j]) != 0:
-        if _point_in_triangle_2d(a, q0, q1, q2, i, j):
+def _segment_meets_triangle_2d(s, i, j, t, x, y):
+    """Closed segment s[i] s[j] meets closed triangle t, projected on axes (x, y)."""
+    ax, ay, bx, by = s[i, x], s[i, y], s[j, x], s[j, y]
+    q0x, q0y, q1x, q1y, q2x, q2y = t[0, x], t[0, y], t[1, x], t[1, y], t[2, x], t[2, y]
+    if orient2d(q0x, q0y, q1x, q1y, q2x, q2y) != 0:
+        if _point_in_triangle_2d(ax, ay, q0x, q0y, q1x, q1y, q2x, q2y):
             return True
-        if _point_in_triangle_2d(b, q0, q1, q2, i, j):
+        if _point_in_triangle_2d(bx, by, q0x, q0y, q1x, q1y, q2x, q2y):
             return True
     # a segment entering the triangle crosses its boundary; a degenerate
     # (flat) triangle is the union of its three edges
-    return (_segments_intersect_2d(a, b, q0, q1, i, j)
-            or _segments_intersect_2d(a, b, q1, q2, i, j)
-            or _segments_intersect_2d(a, b, q2, q0, i, j))
+    return (_segments_intersect_2d(ax, ay, bx, by, q0x, q0y, q1x, q1y)
+            or _segments_intersect_2d(ax, ay, bx, by, q1x, q1y, q2x, q2y)
+            or _segments_intersect_2d(ax, ay, bx, by, q2x, q2y, q0x, q0y))
 
 
 @njit(cache=True)
-def _coplanar_segment_meets_triangle(a, b, q0, q1, q2):
-    """Closed segment ab meets closed triangle q0 q1 q2, all five points coplanar.
+def _coplanar_segment_meets_triangle(s, i, j, t):
+    """Closed segment s[i] s[j] meets closed triangle t, all five points coplanar.
 
     The projection along the dominant axis of their common plane's normal is
     one-to-one on the plane, and every projection keeps an intersection, so
     they meet iff they meet in all three axis projections (this also covers
     collinear and degenerate configurations, where the plane is not unique).
     """
-    return (_segment_meets_triangle_2d(a, b, q0, q1, q2, 0, 1)
-            and _segment_meets_triangle_2d(a, b, q0, q1, q2, 1, 2)
-            and _segment_meets_triangle_2d(a, b, q0, q1, q2, 2, 0))
+    return (_segment_meets_triangle_2d(s, i, j, t, 0, 1)
+            and _segment_meets_triangle_2d(s, i, j, t, 1, 2)
+            and _segment_meets_triangle_2d(s, i, j, t, 2, 0))
 
 
 @njit(cache=True)
-def triangle_is_degenerate(q0, q1, q2):
-    """Exactly: the three points are collinear (or coincide): zero area."""
-    return (orient2d(q0[0], q0[1], q1[0], q1[1], q2[0], q2[1]) == 0
-            and orient2d(q0[1], q0[2], q1[1], q1[2], q2[1], q2[2]) == 0
-            and orient2d(q0[2], q0[0], q1[2], q1[0], q2[2], q2[0]) == 0)
+def triangle_is_degenerate(t):
+    """Exactly: the three points of t (3, 3) are collinear (or coincide): zero area."""
+    for x, y in ((0, 1), (1, 2), (2, 0)):
+        if orient2d(t[0, x], t[0, y], t[1, x], t[1, y], t[2, x], t[2, y]) != 0:
+            return False
+    return True
 
 
 @njit(cache=True)
-def segment_meets_triangle(a, b, q0, q1, q2, side_a, side_b):
-    """Closed segment ab and closed triangle q0 q1 q2 share a point (exact).
+def segment_meets_triangle(s, i, j, t, side_i, side_j):
+    """Closed segment s[i] s[j] and closed triangle t (3, 3) share a point (exact).
 
-    ``side_a`` and ``side_b`` are ``orient3d(q0, q1, q2, a)`` and the same for
-    b, passed in because callers already have them.
+    ``side_i`` and ``side_j`` are ``orient3d(t[0], t[1], t[2], s[i])`` and the
+    same for s[j], passed in because callers already have them.
     """
-    if side_a * side_b > 0:
+    if side_i * side_j > 0:
         return False
-    if side_a == 0 and side_b == 0:
-        if triangle_is_degenerate(q0, q1, q2):
+    a = s[i]
+    b = s[j]
+    if side_i == 0 and side_j == 0:
+        if triangle_is_degenerate(t):
             # the "triangle" is a segment or a point: the two can only meet
             # if they are coplanar
-            if (orient3d(a, b, q0, q1) != 0 or orient3d(a, b, q1, q2) != 0
-                    or orient3d(a, b, q0, q2) != 0):
+            if (orient3d(a, b, t[0], t[1]) != 0 or orient3d(a, b, t[1], t[2]) != 0
+                    or orient3d(a, b, t[0], t[2]) != 0):
                 return False
-        return _coplanar_segment_meets_triangle(a, b, q0, q1, q2)
+        return _coplanar_segment_meets_triangle(s, i, j, t)
     # the segment crosses the (non-degenerate) triangle's plane at one point;
     # that point is in the closed triangle iff the line ab passes on the same
     # side of all three edges (or on one of them)
-    s0 = orient3d(a, b, q0, q1)
-    s1 = orient3d(a, b, q1, q2)
-    s2 = orient3d(a, b, q2, q0)
+    s0 = orient3d(a, b, t[0], t[1])
+    s1 = orient3d(a, b, t[1], t[2])
+    s2 = orient3d(a, b, t[2], t[0])
     return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
 
 
@@ -296,9 +305,9 @@ def triangles_intersect(p, q):
     side_p2 = orient3d(q[0], q[1], q[2], p[2])
     if side_p0 * side_p1 > 0 and side_p0 * side_p2 > 0:
         return False
-    return (segment_meets_triangle(p[0], p[1], q[0], q[1], q[2], side_p0, side_p1)
-            or segment_meets_triangle(p[1], p[2], q[0], q[1], q[2], side_p1, side_p2)
-            or segment_meets_triangle(p[2], p[0], q[0], q[1], q[2], side_p2, side_p0)
-            or segment_meets_triangle(q[0], q[1], p[0], p[1], p[2], side_q0, side_q1)
-            or segment_meets_triangle(q[1], q[2], p[0], p[1], p[2], side_q1, side_q2)
-            or segment_meets_triangle(q[2], q[0], p[0], p[1], p[2], side_q2, side_q0))
+    return (segment_meets_triangle(p, 0, 1, q, side_p0, side_p1)
+            or segment_meets_triangle(p, 1, 2, q, side_p1, side_p2)
+            or segment_meets_triangle(p, 2, 0, q, side_p2, side_p0)
+            or segment_meets_triangle(q, 0, 1, p, side_q0, side_q1)
+            or segment_meets_triangle(q, 1, 2, p, side_q1, side_q2)
+            or segment_meets_triangle(q, 2, 0, p, side_q2, side_q0))

@@ -1,0 +1,180 @@
+"""FCL's env/rob mesh-mesh test, timed side by side: collide vs python-fcl vs coal.
+
+rob.obj (216 triangles) under random rigid poses (FCL's own distribution: translation
+uniform in [-3000,3000]^2 x [0,3000], three uniform Euler angles) against a static
+env.obj (2180 triangles). Every tool is asked for *all* intersecting triangle pairs at
+every pose (the FCL test's question), and separately for a yes/no answer.
+
+    python benchmarks/bench_envrob.py [--poses 5000] [--workers 2]
+
+Peers are optional (pip install -e .[bench]); a missing peer is reported, not hidden.
+Times are wall clock, warm (BVH built and kernels compiled before timing), single thread
+unless stated. Agreement is measured against collide's exact pair sets.
+"""
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from collide.discrete import SKIP_STATIC_PAIRS, scan_frames  # noqa: E402
+from collide.load import load_mesh  # noqa: E402
+from collide.packed import pack_scene  # noqa: E402
+from collide.scan import _run_discrete  # noqa: E402
+
+DATA = HERE.parent / "tests" / "data"
+
+
+def euler_xyz(angles):
+    a, b, c = angles.T
+    one, zero = np.ones_like(a), np.zeros_like(a)
+    rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, np.cos(a), -np.sin(a)], -1),
+                   np.stack([zero, np.sin(a), np.cos(a)], -1)], 1)
+    ry = np.stack([np.stack([np.cos(b), zero, np.sin(b)], -1), np.stack([zero, one, zero], -1),
+                   np.stack([-np.sin(b), zero, np.cos(b)], -1)], 1)
+    rz = np.stack([np.stack([np.cos(c), -np.sin(c), zero], -1), np.stack([np.sin(c), np.cos(c), zero], -1),
+                   np.stack([zero, zero, one], -1)], 1)
+    return rz @ ry @ rx
+
+
+def fcl_poses(n, seed=0):
+    rng = np.random.default_rng(seed)
+    rot = euler_xyz(rng.uniform(-np.pi, np.pi, (n, 3)))
+    trans = rng.uniform([-3000, -3000, 0], [3000, 3000, 3000], (n, 3))
+    return rot, trans
+
+
+def run_collide(env, rob, rot, trans, split, workers):
+    n = rot.shape[0]
+    poses = np.zeros((n, 2, 3, 4))
+    poses[:, 0, :, :3] = rot
+    poses[:, 0, :, 3] = trans
+    poses[:, 1, :, :3] = np.eye(3)
+    static = np.array([False, True])
+    start = time.perf_counter()
+    ps, build_s = pack_scene([rob, env], np.array([0, 1]), split)
+    scan_frames(ps, poses, static, 0, 2, SKIP_STATIC_PAIRS, True)  # compile / warm up
+    out = {"build_s": build_s}
+    for mode, collect in (("all pairs", True),):
+        t0 = time.perf_counter()
+        _, pairs = scan_frames(ps, poses, static, 0, n, SKIP_STATIC_PAIRS, collect)
+        out[mode] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _run_discrete(ps, poses, static, True, workers, None)
+    out[f"all pairs, {workers} threads"] = time.perf_counter() - t0
+    sets = [set() for _ in range(n)]
+    for f, _, _, a, b in pairs.tolist():
+        sets[f].add((b, a))  # (env triangle, rob triangle)
+    out["setup_s"] = time.perf_counter() - start
+    return out, sets
+
+
+def run_fcl(env, rob, rot, trans):
+    import fcl
+
+    def model(mesh):
+        m = fcl.BVHModel()
+        m.beginModel(len(mesh.vertices), len(mesh.faces))
+        m.addSubModel(mesh.vertices, mesh.faces)
+        m.endModel()
+        return m
+
+    env_obj = fcl.CollisionObject(model(env), fcl.Transform())
+    rob_obj = fcl.CollisionObject(model(rob), fcl.Transform())
+    out = {}
+    sets = []
+    for mode, max_contacts in (("all pairs", 1_000_000), ("yes/no", 1)):
+        t0 = time.perf_counter()
+        for k in range(rot.shape[0]):
+            rob_obj.setTransform(fcl.Transform(rot[k], trans[k]))
+            request = fcl.CollisionRequest(num_max_contacts=max_contacts, enable_contact=True)
+            result = fcl.CollisionResult()
+            fcl.collide(env_obj, rob_obj, request, result)
+            if max_contacts > 1:
+                sets.append({(c.b1, c.b2) for c in result.contacts})
+        out[mode] = time.perf_counter() - t0
+    return out, sets
+
+
+def run_coal(env, rob, rot, trans):
+    import coal
+
+    def model(mesh):
+        m = coal.BVHModelOBBRSS()
+        m.beginModel(len(mesh.faces), len(mesh.vertices))
+        m.addVertices(np.ascontiguousarray(mesh.vertices))
+        m.addTriangles(np.ascontiguousarray(mesh.faces, dtype=np.int64))
+        m.endModel()
+        return m
+
+    env_model, rob_model = model(env), model(rob)
+    identity = coal.Transform3s()
+    out = {}
+    sets = []
+    for mode, max_contacts in (("all pairs", 1_000_000), ("yes/no", 1)):
+        request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, max_contacts)
+        t0 = time.perf_counter()
+        for k in range(rot.shape[0]):
+            pose = coal.Transform3s(rot[k], trans[k])
+            result = coal.CollisionResult()
+            coal.collide(env_model, identity, rob_model, pose, request, result)
+            if max_contacts > 1:
+                sets.append({(c.b1, c.b2) for c in result.getContacts()})
+        out[mode] = time.perf_counter() - t0
+    return out, sets
+
+
+def compare(reference, sets):
+    """(poses with a different pair set, pairs reported but not touching, touching pairs missed)."""
+    bad = extra = missed = 0
+    for ref, got in zip(reference, sets):
+        if ref != got:
+            bad += 1
+            extra += len(got - ref)
+            missed += len(ref - got)
+    return bad, extra, missed
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--poses", type=int, default=5000)
+    parser.add_argument("--split", default="sah")
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    env, rob = load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj")
+    rot, trans = fcl_poses(args.poses)
+    n = args.poses
+    times, reference = run_collide(env, rob, rot, trans, args.split, args.workers)
+    n_pairs = sum(len(s) for s in reference)
+    n_colliding = sum(1 for s in reference if s)
+    print(f"env/rob: {n} poses, {n_colliding} colliding, {n_pairs} intersecting triangle pairs "
+          f"(collide, split={args.split}, BVH build {1000 * times['build_s']:.1f} ms)")
+    rows = [("collide", "all pairs", times["all pairs"], (0, 0, 0)),
+            ("collide", f"all pairs, {args.workers} threads", times[f"all pairs, {args.workers} threads"],
+             (0, 0, 0))]
+    for name, runner in (("python-fcl", run_fcl), ("coal", run_coal)):
+        try:
+            peer_times, sets = runner(env, rob, rot, trans)
+        except ImportError as exc:
+            print(f"{name}: not installed ({exc}); pip install -e .[bench]")
+            continue
+        agreement = compare(reference, sets)
+        rows.append((name, "all pairs", peer_times["all pairs"], agreement))
+        rows.append((name, "yes/no", peer_times["yes/no"], None))
+    base = {r[1]: r[2] for r in rows if r[0] == "coal"}
+    print(f"{'tool':<11} {'question':<22} {'us/pose':>9} {'coal/this':>9}  differing poses / "
+          f"non-touching pairs reported / touching pairs missed")
+    for name, mode, seconds, agreement in rows:
+        per_pose = 1e6 * seconds / n
+        ref = base.get("all pairs" if mode.startswith("all pairs") else mode)
+        ratio = f"{ref / seconds:9.2f}" if ref else "        -"
+        agree = "" if agreement is None else " / ".join(map(str, agreement))
+        print(f"{name:<11} {mode:<22} {per_pose:9.1f} {ratio}  {agree}")
+
+
+if __name__ == "__main__":
+    main()

@@ -24,7 +24,7 @@ sys.path.insert(0, str(HERE.parent))
 from collide.discrete import SKIP_STATIC_PAIRS, scan_frames  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.packed import pack_scene  # noqa: E402
-from collide.scan import _run_discrete  # noqa: E402
+from collide.pipeline import _run_discrete  # noqa: E402
 
 DATA = HERE.parent / "tests" / "data"
 

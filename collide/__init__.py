@@ -11,7 +11,7 @@ wired by scan.py. Public API::
 from ._version import __version__
 from .errors import CollideError, InputError, UsageError
 from .output import read_contacts, write_contacts
-from .scan import ScanResult, scan
+from .pipeline import ScanResult, scan
 
 __all__ = ["__version__", "scan", "ScanResult", "read_contacts", "write_contacts",
            "CollideError", "InputError", "UsageError"]

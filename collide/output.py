@@ -63,7 +63,7 @@ def _write_columns(h5, group_name, columns, layout):
 
 
 def write_contacts(path, result):
-    """Write a ScanResult (see scan.py) to ``path`` atomically."""
+    """Write a ScanResult (see pipeline.py) to ``path`` atomically."""
     import h5py
     strings = h5py.string_dtype()
     with atomic_path(path) as tmp:

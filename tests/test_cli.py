@@ -1,0 +1,142 @@
+"""The command line through a real process: outputs, summaries, exit codes."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+import collide
+from conftest import run_cli, write_box
+
+
+def test_version_and_help():
+    proc = run_cli("--version")
+    assert proc.returncode == 0 and collide.__version__ in proc.stdout
+    for cmd in ([], ["scan"], ["validate"], ["inspect"]):
+        proc = run_cli(*cmd, "--help")
+        assert proc.returncode == 0 and "Usage:" in proc.stdout, cmd
+    proc = run_cli("scan", "--help")
+    for option in ("--mode", "--split", "--leaf-size", "--triangle-pairs", "--frames", "--fail-on-contact",
+                   "--workers", "--scheduler", "-q", "-v", "--output"):
+        assert option in proc.stdout
+
+
+def test_scan_writes_spec_file_and_summary(two_boxes, tmp_path):
+    meshes, traj = two_boxes
+    out = tmp_path / "contacts.h5"
+    proc = run_cli("scan", meshes, traj, "-o", out, "--mode", "discrete", "--triangle-pairs",
+                   "--format", "json")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    assert summary["contacts"] == 1 and summary["frames"] == 13 and summary["objects"] == 2
+    with h5py.File(out, "r") as f:
+        assert f.attrs["collide_format"] == "contacts" and f.attrs["format_version"] == 1
+        assert f.attrs["mode"] == "discrete"
+        assert [s.decode() for s in f["objects/name"][()]] == ["mover", "fixed"]
+        assert f["objects/triangles"][()].tolist() == [12, 12]
+        assert f["frames/time"].shape == (13,)
+        assert f["contacts/object_a"].dtype == np.int32 and f["contacts/t_begin"].dtype == np.float64
+        assert f["contacts/kind"].dtype == np.uint8 and f["contacts/frame_begin"].dtype == np.int64
+        assert f["contacts/frame_begin"][()].tolist() == [4]
+        assert f["triangle_pairs/frame"].dtype == np.int64
+        for key in ("command", "created_utc", "inputs", "parameters", "versions"):
+            assert key in f["provenance"].attrs
+        inputs = json.loads(f["provenance"].attrs["inputs"])
+        assert len(inputs["trajectory"]["sha256"]) == 64
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+def test_text_summary_and_fail_on_contact(two_boxes, tmp_path):
+    meshes, traj = two_boxes
+    proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete", "--fail-on-contact")
+    assert proc.returncode == 1, proc.stderr
+    assert "1 contact intervals" in proc.stdout
+    proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete", "--fail-on-contact",
+                   "--frames", "0:3")
+    assert proc.returncode == 0, proc.stderr
+    assert "0 contact intervals" in proc.stdout
+
+
+def test_usage_errors_exit_2(two_boxes, tmp_path):
+    meshes, traj = two_boxes
+    for args in (["scan", meshes, traj, "--split", "middle"], ["scan", meshes, traj, "--frames", "5:2"],
+                 ["scan", meshes, traj, "--frames", "x"], ["scan", meshes], ["frobnicate"],
+                 ["scan", meshes, traj, "-o", tmp_path / "no" / "such" / "dir.h5", "--mode", "discrete"]):
+        proc = run_cli(*args)
+        assert proc.returncode == 2, (args, proc.stderr)
+        assert "Traceback" not in proc.stderr
+
+
+def test_validate_and_inspect(two_boxes):
+    meshes, traj = two_boxes
+    proc = run_cli("validate", traj, meshes)
+    assert proc.returncode == 0 and proc.stdout.startswith("ok:")
+    proc = run_cli("validate", traj)
+    assert proc.returncode == 0 and "13 frames" in proc.stdout
+    proc = run_cli("inspect", meshes, "--format", "json")
+    assert proc.returncode == 0, proc.stderr
+    rows = json.loads(proc.stdout)
+    assert {(r["mesh"], r["split"]) for r in rows} == {(m, s) for m in ("fixed.stl", "mover.obj")
+                                                       for s in ("sah", "median", "mean")}
+    assert all(r["triangles"] == 12 and r["nodes"] >= 3 for r in rows)
+    table = run_cli("inspect", meshes, "--split", "sah")
+    assert table.returncode == 0 and "SAH cost" in table.stdout and "median" not in table.stdout
+
+
+def test_internal_error_exit_3_traceback_only_with_v(two_boxes, tmp_path):
+    """An unexpected exception becomes exit 3 with a one-line message (traceback with -v)."""
+    meshes, traj = two_boxes
+    out = tmp_path / "c.h5"
+    program = ("import sys, collide.pipeline as s\n"
+               "def boom(*a, **k):\n    raise RuntimeError('simulated bug')\n"
+               "s.intervals_from_hits = boom\n"
+               "from collide_cli.main import main\nmain(sys.argv[1:])\n")
+    for flags, traceback_expected in (([], False), (["-v"], True)):
+        proc = subprocess.run([sys.executable, "-c", program, "scan", str(meshes), str(traj), "-o", str(out),
+                               "--mode", "discrete", *flags], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 3, proc.stderr
+        assert "simulated bug" in proc.stderr
+        assert ("Traceback" in proc.stderr) == traceback_expected
+        assert not out.exists() and list(tmp_path.glob(".c.h5*")) == []
+
+
+def test_interrupt_exits_130_and_leaves_no_file(tmp_path):
+    """SIGINT during a long scan: exit 130, no output file, no temporary file."""
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    import trimesh
+    trimesh.creation.icosphere(subdivisions=4).export(meshes / "a.stl")
+    trimesh.creation.icosphere(subdivisions=4).export(meshes / "b.stl")
+    n = 20000
+    pos = np.zeros((n, 1, 3))
+    pos[:, 0, 0] = np.linspace(-0.5, 0.5, n)
+    q = np.zeros((n, 1, 4))
+    q[..., 0] = 1
+    from conftest import write_trajectory
+    traj = write_trajectory(tmp_path / "t.h5", np.arange(n, dtype=float), ["b"], pos, q)
+    out = tmp_path / "c.h5"
+    proc = subprocess.Popen([sys.executable, "-m", "collide_cli.main", "scan", str(meshes), str(traj),
+                             "-o", str(out), "--mode", "discrete", "--workers", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(6)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("scan finished before the interrupt arrived (machine too fast)")
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    assert list(tmp_path.glob(".c.h5*")) == [] and not out.exists()
+
+
+def test_existing_output_replaced_only_by_complete_file(two_boxes, tmp_path):
+    meshes, traj = two_boxes
+    out = tmp_path / "c.h5"
+    out.write_bytes(b"old")
+    proc = run_cli("scan", meshes, traj, "-o", out, "--mode", "discrete")
+    assert proc.returncode == 0
+    assert collide.read_contacts(out).contacts["t_begin"].size == 1

@@ -68,6 +68,9 @@ def cli():
     \b
     collide scan MESHES TRAJECTORY -o contacts.h5   the main job
     collide validate TRAJECTORY [MESHES]            check inputs, change nothing
+    collide report CONTACTS [--format csv]          results to stdout, for pipelines
+    collide diff BASELINE CONTACTS                  CI regression: same contacts or not
+    collide plot CONTACTS -o timeline.png           picture of the contact intervals
     collide inspect MESHES                          mesh and BVH statistics
     """
     _configure_logging()
@@ -180,6 +183,103 @@ def inspect(meshes, splits, leaf_size, fmt):
     widths = [max(len(row[i]) for row in table) for i in range(len(header))]
     for row in table:
         click.echo("  ".join(c.ljust(w) if i < 3 else c.rjust(w) for i, (c, w) in enumerate(zip(row, widths))))
+
+
+@cli.command()
+@click.argument("contacts", type=click.Path(path_type=str))
+@click.option("--format", "fmt", type=click.Choice(["table", "csv", "json", "jsonl"]), default="table",
+              show_default=True, help="table for people; csv/jsonl stream a row per line; json is one document.")
+@click.option("--what", type=click.Choice(["contacts", "pairs", "triangle-pairs"]), default="contacts",
+              show_default=True, help="Contact intervals, a summary per object pair, or triangle pairs per frame.")
+@verbosity_options
+def report(contacts, fmt, what):
+    """Print the contacts of a CONTACTS file (from collide scan) to stdout."""
+    from collide import report as rep
+    cf = collide.read_contacts(contacts)
+    if what == "triangle-pairs" and cf.triangle_pairs is None:
+        raise collide.InputError(contacts, "has no triangle_pairs", "a file from collide scan --triangle-pairs",
+                                 dataset="triangle_pairs")
+    rows = {"contacts": rep.contact_rows, "pairs": rep.pair_rows, "triangle-pairs": rep.triangle_pair_rows}[what](cf)
+    fields = rep.fields(what)
+    if fmt == "csv":
+        _print_csv(rows, fields)
+    elif fmt == "jsonl":
+        for row in rows:
+            click.echo(json.dumps(row))
+    elif fmt == "json":
+        click.echo(json.dumps({"file": contacts, "mode": cf.attrs.get("mode"), "what": what,
+                               "objects": cf.objects["name"], "rows": list(rows)}, indent=1))
+    else:
+        _print_table(list(rows), fields)
+        if what == "contacts":
+            click.echo()
+            _print_table(rep.pair_rows(cf), rep.PAIR_FIELDS)
+
+
+def _print_csv(rows, fields):
+    import csv
+    import io
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    click.echo(buffer.getvalue(), nl=False)
+    for row in rows:
+        buffer.seek(0)
+        buffer.truncate()
+        writer.writerow(row)
+        click.echo(buffer.getvalue(), nl=False)
+
+
+def _format_cell(value):
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+def _print_table(rows, fields):
+    """Aligned columns; numbers right-aligned."""
+    if not rows:
+        click.echo(f"(no rows: {', '.join(fields[:4])}, ...)")
+        return
+    cells = [list(fields)] + [[_format_cell(r[f]) for f in fields] for r in rows]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(fields))]
+    numeric = [not isinstance(rows[0][f], str) for f in fields]
+    for row in cells:
+        click.echo("  ".join(c.rjust(w) if num else c.ljust(w) for c, w, num in zip(row, widths, numeric)).rstrip())
+
+
+@cli.command()
+@click.argument("baseline", type=click.Path(path_type=str))
+@click.argument("contacts", type=click.Path(path_type=str))
+@click.option("--time-tol", type=click.FloatRange(min=0), default=1e-9, show_default=True,
+              help="Largest difference of t_begin / t_end (in time units) still counted as the same.")
+@verbosity_options
+def diff(baseline, contacts, time_tol):
+    """Compare CONTACTS with BASELINE: exit 0 when the same, 1 (listing every difference) when not.
+
+    Pairs are matched by object names; provenance is ignored. For CI:
+    collide scan ... -o contacts.h5 && collide diff baseline.h5 contacts.h5
+    """
+    from collide.report import diff_contacts
+    differences = diff_contacts(collide.read_contacts(baseline), collide.read_contacts(contacts), time_tol)
+    if not differences:
+        click.echo(f"same contacts ({baseline} vs {contacts}, time tolerance {time_tol:g})")
+        return
+    click.echo(f"{len(differences)} differences ({baseline} -> {contacts}, time tolerance {time_tol:g}):")
+    for d in differences:
+        click.echo("  " + d.describe())
+    sys.exit(EXIT_FINDINGS)
+
+
+@cli.command()
+@click.argument("contacts", type=click.Path(path_type=str))
+@click.option("-o", "--output", default="timeline.png", show_default=True, type=click.Path(),
+              help="PNG file to write.")
+@click.option("--title", default=None, help="Plot title.")
+@verbosity_options
+def plot(contacts, output, title):
+    """Draw the contact intervals of CONTACTS over time, one row per object pair (PNG)."""
+    from collide.plot import plot_timeline
+    plot_timeline(collide.read_contacts(contacts), output, title)
+    click.echo(f"wrote {output}")
 
 
 # --- entry point ------------------------------------------------------------------------------

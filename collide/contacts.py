@@ -46,29 +46,108 @@ def frame_runs(frames):
     return starts, ends
 
 
+def _to_columns(rows):
+    """Contact columns from tuples ordered as CONTACT_COLUMNS, sorted (SPEC §4)."""
+    columns = {name: np.array([r[k] for r in rows], dtype=dtype)
+               for k, (name, dtype) in enumerate(CONTACT_COLUMNS.items())}
+    return columns
+
+
+def _group_by_pair(rows, a_col, b_col):
+    """Yield (a, b, rows of that pair) for a 2-D array sorted or not."""
+    if rows.shape[0] == 0:
+        return
+    keys = rows[:, a_col].astype(np.int64) * (int(rows[:, b_col].max()) + 1) + rows[:, b_col].astype(np.int64)
+    for key in np.unique(keys):
+        group = rows[keys == key]
+        yield int(group[0, a_col]), int(group[0, b_col]), group
+
+
 def intervals_from_hits(hits, times):
     """Discrete contact intervals from frame hits.
 
     hits int64 (H, 6): frame, object_a, object_b, n_pairs, tri_a, tri_b.
     times float64 (T,) analysed frame times.
-    Returns the contact columns (points set to NaN: filled by the caller) with
-    one row per maximal run of consecutive frames of one object pair.
+    Returns (columns, where): contact columns sorted per SPEC §4 with one row
+    per maximal run of consecutive frames of one object pair (points NaN, for
+    the caller to fill), and where = (step int64 (E,), u float64 (E,)): the
+    contact's first moment as frame/step index and fraction of the step.
     """
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, 6)
-    order = np.lexsort((hits[:, 0], hits[:, 2], hits[:, 1]))
-    hits = hits[order]
     rows = []
-    pair_keys = hits[:, 1] * (hits[:, 2].max(initial=0) + 1) + hits[:, 2]
-    for key in np.unique(pair_keys):
-        group = hits[pair_keys == key]
+    for a, b, group in _group_by_pair(hits, 1, 2):
+        group = group[np.argsort(group[:, 0], kind="stable")]
         starts, ends = frame_runs(group[:, 0])
         for s, e in zip(starts, ends):
             f0, f1 = group[s, 0], group[e, 0]
-            rows.append((group[s, 1], group[s, 2], times[f0], times[f1], f0, f1,
-                         KIND_FRAME, group[s, 4], group[s, 5], np.nan, np.nan, np.nan))
-    columns = {name: np.array([r[k] for r in rows], dtype=dtype)
-               for k, (name, dtype) in enumerate(CONTACT_COLUMNS.items())}
-    return sort_columns(columns, ["object_a", "object_b", "t_begin"])
+            rows.append((a, b, times[f0], times[f1], f0, f1, KIND_FRAME, group[s, 4], group[s, 5],
+                         np.nan, np.nan, np.nan, f0, 0.0))
+    return _finish(rows)
+
+
+def _finish(rows):
+    """Sort rows (contact columns + step, u) and split off the where-arrays."""
+    rows.sort(key=lambda r: (r[0], r[1], r[2]))
+    columns = _to_columns([r[:12] for r in rows])
+    where = (np.array([r[12] for r in rows], dtype=np.int64), np.array([r[13] for r in rows], dtype=np.float64))
+    return columns, where
+
+
+def step_time(times, step, u):
+    """Absolute time of fraction u of step (frame step -> step+1); exact at u = 0 and 1."""
+    if u <= 0.0:
+        return times[step]
+    if u >= 1.0:
+        return times[step + 1]
+    return times[step] + u * (times[step + 1] - times[step])
+
+
+def intervals_from_steps(steps, hits, times):
+    """Continuous contact intervals.
+
+    steps float64 (R, 7): step k, object_a, object_b, u_begin, u_end, tri_a, tri_b
+    (u in [0, 1] of the step from frame k to k+1), from swept.scan_intervals.
+    hits int64 (H, 6): exact contacts at frame poses, as for intervals_from_hits.
+    Everything is merged per object pair into maximal intervals; kind is 0 when
+    a frame pose inside the interval shows the contact, 1 when only the swept
+    test saw it. Returns (columns, where) as intervals_from_hits.
+    """
+    steps = np.asarray(steps, dtype=np.float64).reshape(-1, 7)
+    hits = np.asarray(hits, dtype=np.int64).reshape(-1, 6)
+    # items: a, b, begin, end, tri_a, tri_b, is_frame_contact, step, u
+    items = []
+    for k, a, b, u0, u1, ta, tb in steps.tolist():
+        k = int(k)
+        begin = step_time(times, k, u0)
+        end = step_time(times, k, u1)
+        if 0.0 < u0 < 1.0:  # keep the conservative side under rounding
+            begin = np.nextafter(begin, -np.inf)
+        if 0.0 < u1 < 1.0:
+            end = np.nextafter(end, np.inf)
+        items.append((int(a), int(b), begin, end, int(ta), int(tb), False, k, u0))
+    for f, a, b, _, ta, tb in hits.tolist():
+        items.append((a, b, times[f], times[f], ta, tb, True, f, 0.0))
+    items.sort(key=lambda it: (it[0], it[1], it[2], not it[6], it[4], it[5]))
+    rows = []
+    current = None
+    for it in items:
+        if current is not None and it[:2] == current[0][:2] and it[2] <= current[1]:
+            current[1] = max(current[1], it[3])
+            current[2] = current[2] or it[6]
+            continue
+        if current is not None:
+            rows.append(_interval_row(current, times))
+        current = [it, it[3], it[6]]
+    if current is not None:
+        rows.append(_interval_row(current, times))
+    return _finish(rows)
+
+
+def _interval_row(current, times):
+    first, end, seen_at_frame = current
+    a, b, begin, _, ta, tb, _, step, u = first
+    return (a, b, begin, end, frame_of_time(times, begin), frame_of_time(times, end),
+            KIND_FRAME if seen_at_frame else KIND_SWEPT, ta, tb, np.nan, np.nan, np.nan, step, u)
 
 
 def frame_of_time(times, t):

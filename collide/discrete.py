@@ -26,6 +26,16 @@ ONLY_STATIC_PAIRS = 2   # only pairs of two static objects
 
 
 @njit(cache=True)
+def object_margins(ps, rp0, rp1, out):
+    """Rounding margin (length units) of each object over poses rp0 and rp1 (N, 3, 4) into out (N,)."""
+    for o in range(rp0.shape[0]):
+        scale = 0.0
+        for rp in (rp0, rp1):
+            scale = max(scale, abs(rp[o, 0, 3]) + abs(rp[o, 1, 3]) + abs(rp[o, 2, 3]))
+        out[o] = config.BOX_MARGIN_REL * (scale + ps.radius[ps.object_mesh[o]]) + config.BOX_MARGIN_ABS
+
+
+@njit(cache=True)
 def object_world_boxes(ps, rp, margin_out):
     """World boxes (N, 3) lo and hi of every object's root box at poses rp (N, 3, 4).
 
@@ -34,11 +44,9 @@ def object_world_boxes(ps, rp, margin_out):
     n = rp.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
+    object_margins(ps, rp, rp, margin_out)
     for o in range(n):
-        mesh = ps.object_mesh[o]
-        root = ps.root[mesh]
-        scale = abs(rp[o, 0, 3]) + abs(rp[o, 1, 3]) + abs(rp[o, 2, 3]) + ps.radius[mesh]
-        margin_out[o] = config.BOX_MARGIN_REL * scale + config.BOX_MARGIN_ABS
+        root = ps.root[ps.object_mesh[o]]
         w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp[o], rp[o])
         lo[o] = w_lo - margin_out[o]
         hi[o] = w_hi + margin_out[o]

@@ -29,6 +29,8 @@ class PackedScene(NamedTuple):
     prim_ids: np.ndarray     #: int64 (sum F,) mesh-local face indices
     root: np.ndarray         #: int64 (M,) root node of each mesh
     radius: np.ndarray       #: float64 (M,) max |body coordinate| of each mesh
+    centre: np.ndarray       #: float64 (M, 3) body centre of each mesh (its root box centre)
+    sphere_radius: np.ndarray  #: float64 (M,) max distance of a vertex from ``centre``
     object_mesh: np.ndarray  #: int64 (N,)
     world_start: np.ndarray  #: int64 (N + 1,)
 
@@ -48,6 +50,7 @@ def pack_scene(meshes, object_mesh, split="sah", leaf_size=None):
         # inner nodes point at nodes, leaves at prim_ids: shift both to global rows
         node_first.append(np.where(b.count == 0, b.first + node_start[m], b.first + face_start[m]))
     object_mesh = np.ascontiguousarray(object_mesh, dtype=np.int64)
+    centre = np.array([0.5 * (b.lo[0] + b.hi[0]) for b in bvhs], dtype=np.float64).reshape(-1, 3)
     packed = PackedScene(
         vertices=np.ascontiguousarray(np.concatenate([m.vertices for m in meshes]), dtype=np.float64),
         vert_start=np.concatenate([[0], np.cumsum(n_verts)]).astype(np.int64),
@@ -60,6 +63,8 @@ def pack_scene(meshes, object_mesh, split="sah", leaf_size=None):
         prim_ids=np.ascontiguousarray(np.concatenate([b.prim_ids for b in bvhs]), dtype=np.int64),
         root=node_start[:-1].astype(np.int64),
         radius=np.array([np.abs(m.vertices).max() for m in meshes], dtype=np.float64),
+        centre=centre,
+        sphere_radius=np.array([np.linalg.norm(m.vertices - c, axis=1).max() for m, c in zip(meshes, centre)]),
         object_mesh=object_mesh,
         world_start=np.concatenate([[0], np.cumsum(n_verts[object_mesh])]).astype(np.int64),
     )

@@ -3,6 +3,7 @@ chunk of frames (in parallel) -> contact intervals -> result (-> file).
 """
 import datetime
 import hashlib
+import logging
 import os
 import platform
 import time
@@ -14,12 +15,15 @@ import numpy as np
 from . import config
 from ._version import __version__
 from .closest import contact_point
-from .contacts import (TRIANGLE_PAIR_COLUMNS, columns_from_rows, intervals_from_hits,
-                       sort_columns)
+from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, intervals_from_hits,
+                       intervals_from_steps, sort_columns)
 from .discrete import ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
 from .errors import UsageError
 from .load import load_scene
 from .packed import pack_scene, world_vertices
+from .swept import scan_intervals
+
+log = logging.getLogger("collide")
 
 MODES = ("continuous", "discrete")
 
@@ -77,31 +81,87 @@ def _sha256(path):
     return digest.hexdigest()
 
 
-def _frame_chunks(n_frames, workers):
-    size = max(1, min(64, -(-n_frames // (8 * workers))))
-    return [(s, min(s + size, n_frames)) for s in range(0, n_frames, size)]
+def _chunks(n_items, workers):
+    size = max(1, min(64, -(-n_items // (8 * workers))))
+    return [(s, min(s + size, n_items)) for s in range(0, n_items, size)]
 
 
-def _run_discrete(ps, poses, static, collect_pairs, workers, progress):
-    """Frame hits and triangle pairs of all frames, chunks run in parallel threads."""
-    n_frames = poses.shape[0]
-    chunks = _frame_chunks(n_frames, workers)
+class _Progress:
+    """Counts finished work units (frames or motion steps) and reports them."""
+
+    def __init__(self, total, callback):
+        self.total, self.done, self.callback = total, 0, callback
+
+    def add(self, n):
+        self.done += n
+        if self.callback is not None:
+            self.callback(self.done, self.total)
+
+
+def _run_chunks(kernel, shared, extra, n_items, workers, progress, scheduler=None):
+    """kernel(*shared, start, stop, *extra) for chunks of range(n_items), in parallel.
+
+    Locally in ``workers`` threads (the kernels release the GIL, so threads use
+    every core); with ``scheduler`` (an address) as tasks on a Dask distributed
+    cluster, with the shared arrays sent to the workers once. Results come back
+    in chunk order, so the output does not depend on scheduling.
+    """
+    if scheduler is not None:
+        return _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
+    chunks = _chunks(n_items, workers)
     results = [None] * len(chunks)
-    done = 0
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(scan_frames, ps, poses, static, s, e, SKIP_STATIC_PAIRS,
-                               collect_pairs): i for i, (s, e) in enumerate(chunks)}
+        futures = {pool.submit(kernel, *shared, s, e, *extra): i for i, (s, e) in enumerate(chunks)}
         try:
             for future in as_completed(futures):
                 i = futures[future]
                 results[i] = future.result()
-                done += chunks[i][1] - chunks[i][0]
                 if progress is not None:
-                    progress(done, n_frames)
+                    progress.add(chunks[i][1] - chunks[i][0])
         except BaseException:
             for future in futures:
                 future.cancel()
             raise
+    return results
+
+
+def _call_kernel(kernel, shared, start, stop, extra):
+    return kernel(*shared, start, stop, *extra)
+
+
+def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
+    """The Dask version of _run_chunks (collide must be installed on the workers)."""
+    try:
+        from distributed import Client
+        from distributed import as_completed as dask_as_completed
+    except ImportError:
+        raise UsageError("--scheduler needs Dask distributed; install it with: pip install 'collide[dask]'") \
+            from None
+    try:
+        client = Client(scheduler, timeout="10s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise UsageError(f"cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
+    with client:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        chunks = _chunks(n_items, 2 * n_workers)
+        shared_future = client.scatter({"shared": shared}, broadcast=True, hash=False)["shared"]
+        futures = [client.submit(_call_kernel, kernel, shared_future, s, e, extra, pure=False)
+                   for s, e in chunks]
+        index = {f.key: i for i, f in enumerate(futures)}
+        results = [None] * len(chunks)
+        for future in dask_as_completed(futures):
+            i = index[future.key]
+            results[i] = future.result()
+            if progress is not None:
+                progress.add(chunks[i][1] - chunks[i][0])
+    return results
+
+
+def _run_discrete(ps, poses, static, collect_pairs, workers, progress, scheduler=None):
+    """Frame hits (H, 6) and triangle pairs (P, 5) of all frames."""
+    n_frames = poses.shape[0]
+    results = _run_chunks(scan_frames, (ps, poses, static), (SKIP_STATIC_PAIRS, collect_pairs),
+                          n_frames, workers, progress, scheduler)
     hits = [r[0] for r in results]
     pairs = [r[1] for r in results]
     if static.sum() >= 2:  # static pairs: test once, then repeat for every frame
@@ -111,6 +171,16 @@ def _run_discrete(ps, poses, static, collect_pairs, workers, progress):
     return np.concatenate(hits).reshape(-1, 6), np.concatenate(pairs).reshape(-1, 5)
 
 
+def _run_swept(ps, poses, static, time_tol, dist_tol, workers, progress, scheduler=None):
+    """Contact rows (R, 7) of every motion step (static pairs excluded: they never move)."""
+    n_steps = poses.shape[0] - 1
+    if n_steps < 1:
+        return np.zeros((0, 7))
+    results = _run_chunks(scan_intervals, (ps, poses, static), (SKIP_STATIC_PAIRS, time_tol, dist_tol),
+                          n_steps, workers, progress, scheduler)
+    return np.concatenate(results).reshape(-1, 7)
+
+
 def _repeat_over_frames(rows, n_frames):
     """Rows of frame 0 (first column = frame) repeated for every frame."""
     out = np.repeat(rows[None, :, :], n_frames, axis=0)
@@ -118,18 +188,58 @@ def _repeat_over_frames(rows, n_frames):
     return out.reshape(-1, rows.shape[1])
 
 
-def _fill_contact_points(contacts, scene, poses):
-    """World contact point of each contact's (tri_a, tri_b) at its first frame."""
+def scene_size(ps, poses):
+    """Diagonal of a box holding every object at every analysed frame (length units)."""
+    centre = ps.centre[ps.object_mesh]                                    # (N, 3)
+    world = np.einsum("tnij,nj->tni", poses[..., :3], centre) + poses[..., 3]
+    radius = ps.sphere_radius[ps.object_mesh][None, :, None]
+    return float(np.linalg.norm((world + radius).max(axis=(0, 1)) - (world - radius).min(axis=(0, 1))))
+
+
+def rotation_warning(names, poses, frame_index):
+    """Warn (once) when an object turns more than config.ROTATION_WARN_DEG between frames."""
+    if poses.shape[0] < 2:
+        return
+    r0, r1 = poses[:-1, :, :, :3], poses[1:, :, :, :3]
+    cos = (np.einsum("tnij,tnij->tn", r0, r1) - 1.0) / 2.0
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))          # (T-1, N)
+    step, obj = np.unravel_index(int(np.argmax(angle)), angle.shape)
+    if angle[step, obj] > config.ROTATION_WARN_DEG:
+        log.warning("object %r turns by %.1f degrees between frames %d and %d (limit %.0f); continuous mode "
+                    "moves vertices on straight lines between frames, which departs from the rigid motion: "
+                    "sample the trajectory more finely", names[obj], angle[step, obj], frame_index[step],
+                    frame_index[step + 1], config.ROTATION_WARN_DEG)
+
+
+def _fill_contact_points(contacts, where, scene, poses):
+    """World contact point of each contact's (tri_a, tri_b) at its first moment.
+
+    where = (step, u): the vertices are interpolated linearly between frames
+    step and step+1 (u = 0: the frame itself).
+    """
+    steps, fractions = where
     for k in range(contacts["object_a"].shape[0]):
-        f = contacts["frame_begin"][k]
+        step, u = steps[k], fractions[k]
         tris = []
         for side, tri in (("object_a", "tri_a"), ("object_b", "tri_b")):
             o = contacts[side][k]
             mesh = scene.meshes[scene.object_mesh[o]]
             corners = mesh.vertices[mesh.faces[contacts[tri][k]]]
-            tris.append(world_vertices(corners, poses[f, o]))
+            position = world_vertices(corners, poses[step, o])
+            if u > 0.0:
+                position = (1.0 - u) * position + u * world_vertices(corners, poses[step + 1, o])
+            tris.append(np.ascontiguousarray(position))
         point, _ = contact_point(tris[0], tris[1])
         contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
+
+
+def _check_options(mode, scheduler, workers):
+    if mode not in MODES:
+        raise UsageError(f"unknown mode {mode!r}; expected one of {', '.join(MODES)}")
+    workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    if workers < 1:
+        raise UsageError(f"workers must be >= 1, got {workers}")
+    return workers
 
 
 def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
@@ -137,19 +247,12 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          time_tol=config.TIME_TOL, output=None, progress=None, command=None):
     """Find when, where and for how long the meshes touch along the trajectory.
 
-    Parameters mirror ``collide scan`` (SPEC §1). ``progress(done, total)`` is
-    called as frames complete. With ``output`` the result is also written there
-    (atomically). Returns a ScanResult.
+    Parameters mirror ``collide scan`` (SPEC §1); ``time_tol`` is a fraction of
+    the frame interval. ``progress(done, total)`` is called as work completes.
+    With ``output`` the result is also written there (atomically). Returns a
+    ScanResult.
     """
-    if mode not in MODES:
-        raise UsageError(f"unknown mode {mode!r}; expected one of {', '.join(MODES)}")
-    if mode == "continuous":
-        raise UsageError("--mode continuous is not available yet in this version; use --mode discrete")
-    if scheduler is not None:
-        raise UsageError("--scheduler (Dask) is not available yet in this version")
-    workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    if workers < 1:
-        raise UsageError(f"workers must be >= 1, got {workers}")
+    workers = _check_options(mode, scheduler, workers)
     timings = {}
     start = time.perf_counter()
     scene = load_scene(meshes, trajectory)
@@ -161,9 +264,17 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size)
 
     start = time.perf_counter()
-    hits, pair_rows = _run_discrete(ps, poses, scene.static, triangle_pairs, workers, progress)
-    contacts = intervals_from_hits(hits, frame_time)
-    _fill_contact_points(contacts, scene, poses)
+    continuous = mode == "continuous"
+    work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
+    hits, pair_rows = _run_discrete(ps, poses, scene.static, triangle_pairs, workers, work, scheduler)
+    if continuous:
+        rotation_warning(scene.names, poses, index)
+        dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
+        steps = _run_swept(ps, poses, scene.static, time_tol, dist_tol, workers, work, scheduler)
+        contacts, where = intervals_from_steps(steps, hits, frame_time)
+    else:
+        contacts, where = intervals_from_hits(hits, frame_time)
+    _fill_contact_points(contacts, where, scene, poses)
     pairs = None
     if triangle_pairs:
         pairs = sort_columns(columns_from_rows(pair_rows, TRIANGLE_PAIR_COLUMNS),
@@ -172,16 +283,18 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
 
     parameters = {"mode": mode, "split": split, "leaf_size": leaf_size or config.DEFAULT_LEAF_SIZE,
                   "triangle_pairs": bool(triangle_pairs), "frames": None if frames is None else str(frames),
-                  "workers": workers, "time_tol": time_tol}
+                  "workers": workers, "scheduler": scheduler, "time_tol": time_tol}
     result = ScanResult(
         object_names=list(scene.names),
         object_meshes=[scene.meshes[m].path.name for m in scene.object_mesh],
         object_triangles=np.array([scene.meshes[m].faces.shape[0] for m in scene.object_mesh]),
         frame_time=frame_time, frame_index=index, contacts=contacts, triangle_pairs=pairs,
-        mode=mode, interpolation="linear-vertex" if mode == "continuous" else "none",
+        mode=mode, interpolation="linear-vertex" if continuous else "none",
         provenance={}, versions=versions(),
         stats={**timings, "frames": int(index.size), "objects": len(scene.names),
-               "contacts": int(contacts["object_a"].size), "frames_in_contact": int(np.unique(hits[:, 0]).size),
+               "contacts": int(contacts["object_a"].size),
+               "swept_only_contacts": int((contacts["kind"] == KIND_SWEPT).sum()),
+               "frames_in_contact": int(np.unique(hits[:, 0]).size),
                "triangle_pairs": int(hits[:, 3].sum())},
     )
     result.provenance = {

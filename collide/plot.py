@@ -1,0 +1,67 @@
+"""Timeline picture of a contact file (``collide plot``): one row per object pair,
+contact intervals as bars over time, swept-only contacts hatched, frame ticks.
+
+matplotlib is optional (``pip install collide[plot]``); it is imported only here.
+"""
+from pathlib import Path
+
+from .errors import UsageError
+from .output import atomic_path
+from .report import timeline
+
+FRAME_COLOUR = "#1f77b4"
+SWEPT_COLOUR = "#d62728"
+
+
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError:
+        raise UsageError("collide plot needs matplotlib; install it with: pip install 'collide[plot]'") from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_timeline(cf, output, title=None):
+    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically)."""
+    plt = _pyplot()
+    from matplotlib.patches import Patch
+    rows = timeline(cf)
+    labels = list(rows)
+    times = cf.frame_time
+    t0, t1 = (float(times[0]), float(times[-1])) if times.size else (0.0, 1.0)
+    span = max(t1 - t0, 1e-12)
+    min_width = span / 400  # single-frame contacts stay visible
+    height = 1.6 + 0.32 * max(len(labels), 1)
+    fig, ax = plt.subplots(figsize=(11, height), dpi=110)
+    for row, label in enumerate(labels):
+        for begin, end, kind in rows[label]:
+            swept = kind == "swept"
+            width = max(end - begin, min_width)
+            ax.broken_barh([(begin - (width - (end - begin)) / 2, width)], (row - 0.35, 0.7),
+                           facecolors=SWEPT_COLOUR if swept else FRAME_COLOUR,
+                           hatch="///" if swept else None, edgecolor="black", linewidth=0.4)
+    ax.set_yticks(range(len(labels)))
+    ax.set_yticklabels(labels, fontsize=8 if len(labels) > 20 else 10)
+    ax.set_ylim(len(labels) - 0.5 if labels else 0.5, -0.5)
+    ax.set_xlim(t0 - 0.01 * span, t1 + 0.01 * span)
+    if 1 < times.size <= 400:
+        ax.set_xticks(times, minor=True)
+        ax.tick_params(axis="x", which="minor", length=3, color="grey")
+    ax.grid(axis="x", linestyle=":", alpha=0.5)
+    ax.set_xlabel("time (frame ticks below the axis)")
+    mode = cf.attrs.get("mode", "?")
+    ax.set_title(title or f"{len(labels)} object pairs in contact ({mode} mode)", fontsize=11)
+    if not labels:
+        ax.text(0.5, 0.5, "no contacts", transform=ax.transAxes, ha="center", va="center", fontsize=14)
+    ax.legend(handles=[Patch(facecolor=FRAME_COLOUR, edgecolor="black", label="contact seen at a frame"),
+                       Patch(facecolor=SWEPT_COLOUR, hatch="///", edgecolor="black",
+                             label="between frames only (swept test)")],
+              loc="upper center", bbox_to_anchor=(0.5, -0.55 / height * 2.5), ncol=2, fontsize=8, frameon=False)
+    fig.tight_layout()
+    output = Path(output)
+    with atomic_path(output) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return output

@@ -1,0 +1,112 @@
+"""Continuous mode on scenes whose contact times are known exactly.
+
+All coordinates and times are dyadic rationals, so the exact contact times below are
+exact for the float64 inputs too. SPEC §3: t_begin <= exact <= t_begin + tol and
+t_end >= exact >= t_end - tol, with tol = time_tol * frame interval.
+"""
+import numpy as np
+import pytest
+
+import collide
+from collide import config
+from conftest import identity_quaternions, write_box, write_trajectory
+
+
+def scene(tmp_path, boxes, mover, z_or_pos, times):
+    """boxes: {name: (extents, centre)} static meshes plus the mover's mesh; the mover
+    follows positions z_or_pos (T, 3)."""
+    meshes = tmp_path / "meshes"
+    meshes.mkdir(exist_ok=True)
+    for name, (extents, centre) in boxes.items():
+        write_box(meshes / f"{name}.stl", extents, centre)
+    pos = np.asarray(z_or_pos, dtype=float)[:, None, :]
+    traj = write_trajectory(tmp_path / "traj.h5", times, [mover], pos,
+                            identity_quaternions(len(times), 1))
+    return meshes, traj
+
+
+def check_interval(c, k, begin, end, dt, time_tol=config.TIME_TOL):
+    tol = time_tol * dt
+    assert c["t_begin"][k] <= begin <= c["t_begin"][k] + tol, (c["t_begin"][k], begin)
+    assert c["t_end"][k] >= end >= c["t_end"][k] - tol, (c["t_end"][k], end)
+
+
+def test_fast_cube_through_thin_plate_tunnels_in_discrete_mode(tmp_path):
+    # plate: z in [-1/16, 1/16]; cube of side 1/4 moving z from -4 to 4 within one frame step
+    meshes, traj = scene(tmp_path, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                         "cube", [[0, 0, -4.0], [0, 0, 4.0]], [0.0, 2.0])
+    assert collide.scan(meshes, traj, mode="discrete").contacts["t_begin"].size == 0
+    c = collide.scan(meshes, traj).contacts                         # continuous is the default
+    assert c["t_begin"].size == 1 and c["kind"].tolist() == [1]
+    # top face z = -3.875 + 8u reaches -1/16 at u = 0.4765625; bottom face -4.125 + 8u leaves
+    # 1/16 at u = 0.5234375; times are 2u
+    check_interval(c, 0, 2 * 0.4765625, 2 * 0.5234375, dt=2.0)
+    assert c["frame_begin"].tolist() == [0] and c["frame_end"].tolist() == [0]
+    assert abs(c["point_z"][0] + 1 / 16) < 1e-5                     # contact at the plate's bottom face
+
+
+def test_crossing_rods_touch_edge_to_edge(tmp_path):
+    # rod a along x (static), rod b along y moving down in z: edges meet first
+    h = 0.0625
+    meshes, traj = scene(tmp_path, {"a": ((4, 2 * h, 2 * h), (0, 0, 0)), "b": ((2 * h, 4, 2 * h), (0, 0, 0))},
+                         "b", [[0, 0, 1.0], [0, 0, -1.0]], [0.0, 1.0])
+    c = collide.scan(meshes, traj).contacts
+    check_interval(c, 0, (1 - 2 * h) / 2, (1 + 2 * h) / 2, dt=1.0)
+    assert c["kind"].tolist() == [1]
+
+
+def test_repeated_crossings_give_one_interval_each(tmp_path):
+    z = [-1.0, 1.0, -1.0, 1.0, -1.0]
+    meshes, traj = scene(tmp_path, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                         "cube", [[0, 0, v] for v in z], [0.0, 0.5, 1.0, 1.5, 2.0])
+    c = collide.scan(meshes, traj).contacts
+    assert c["t_begin"].size == 4 and set(c["kind"].tolist()) == {1}
+    # moving up (-1 -> 1 over 0.5 s): touch while |z| <= 3/16 -> u in [13/32, 19/32]
+    for k in range(4):
+        lo, hi = 13 / 32, 19 / 32
+        check_interval(c, k, 0.5 * (k + lo), 0.5 * (k + hi), dt=0.5)
+        assert c["frame_begin"][k] == k
+
+
+def test_near_miss_by_two_ten_thousandths_of_the_scene_is_not_reported(tmp_path):
+    # the cube passes beside the plate's edge (x = 5) with a gap of 0.02 % of the scene size
+    size = np.sqrt(10.25 ** 2 + 10 ** 2 + 8.25 ** 2)
+    gap = 2e-4 * size
+    x = 5 + 0.125 + gap
+    meshes, traj = scene(tmp_path, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                         "cube", [[x, 0, -4.0], [x, 0, 4.0]], [0.0, 1.0])
+    assert collide.scan(meshes, traj).contacts["t_begin"].size == 0
+    # and the same path moved onto the edge does touch (grazing)
+    touching = tmp_path / "touching"
+    touching.mkdir()
+    meshes2, traj2 = scene(touching, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                           "cube", [[5.125, 0, -4.0], [5.125, 0, 4.0]], [0.0, 1.0])
+    c = collide.scan(meshes2, traj2).contacts
+    check_interval(c, 0, (4 - 0.125 - 0.0625) / 8, (4 + 0.125 + 0.0625) / 8, dt=1.0)
+
+
+def test_no_motion_equals_discrete(tmp_path, two_boxes):
+    meshes, traj = two_boxes
+    discrete = collide.scan(meshes, traj, mode="discrete").contacts
+    # the same scene, continuous: the mover's steps (0.5 apart) also touch between frames,
+    # entering at x = -1 exactly (a frame) and leaving at x = 1 (a frame)
+    cont = collide.scan(meshes, traj).contacts
+    assert cont["kind"].tolist() == [0]
+    assert cont["t_begin"][0] <= discrete["t_begin"][0] and cont["t_end"][0] >= discrete["t_end"][0]
+    check_interval(cont, 0, 0.4, 0.8, dt=0.1)
+
+
+def test_still_touching_objects_stay_in_contact(tmp_path):
+    """A box resting on the plate (faces touching exactly) and sliding along it: one interval."""
+    xs = np.linspace(-2, 2, 9)
+    meshes, traj = scene(tmp_path, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                         "cube", [[x, 0, 0.1875] for x in xs], np.arange(9) * 0.25)
+    c = collide.scan(meshes, traj).contacts
+    assert c["t_begin"].tolist() == [0.0] and c["t_end"].tolist() == [2.0] and c["kind"].tolist() == [0]
+
+
+def test_time_tol_option_changes_the_precision(tmp_path):
+    meshes, traj = scene(tmp_path, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                         "cube", [[0, 0, -4.0], [0, 0, 4.0]], [0.0, 1.0])
+    c = collide.scan(meshes, traj, time_tol=1e-3).contacts
+    check_interval(c, 0, 0.4765625, 0.5234375, dt=1.0, time_tol=1e-3)

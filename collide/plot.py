@@ -52,13 +52,13 @@ def plot_timeline(cf, output, title=None):
     ax.grid(axis="x", linestyle=":", alpha=0.5)
     ax.set_xlabel("time (frame ticks below the axis)")
     mode = cf.attrs.get("mode", "?")
-    ax.set_title(title or f"{len(labels)} object pairs in contact ({mode} mode)", fontsize=11)
+    ax.set_title(title or f"{len(labels)} object pairs in contact ({mode} mode)", fontsize=11, loc="left")
     if not labels:
         ax.text(0.5, 0.5, "no contacts", transform=ax.transAxes, ha="center", va="center", fontsize=14)
     ax.legend(handles=[Patch(facecolor=FRAME_COLOUR, edgecolor="black", label="contact seen at a frame"),
                        Patch(facecolor=SWEPT_COLOUR, hatch="///", edgecolor="black",
                              label="between frames only (swept test)")],
-              loc="upper center", bbox_to_anchor=(0.5, -0.55 / height * 2.5), ncol=2, fontsize=8, frameon=False)
+              loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     output = Path(output)
     with atomic_path(output) as tmp:

@@ -53,7 +53,7 @@ ROUNDING_FACTOR = 128.0
 #: box checks per query before giving a conservative answer
 MAX_CHECKS = 200_000
 #: live boxes per query before giving a conservative answer
-HEAP_SIZE = 4096
+HEAP_SIZE = 2048
 #: boxes narrower than this (in t, u or v) are not split further
 _MIN_WIDTH = 2.0 ** -60
 
@@ -211,11 +211,14 @@ def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
         for r in range(4):
             m = max(m, abs(x_t0[r, axis]), abs(x_t1[r, axis]))
         tol[axis] = ROUNDING_FACTOR * _EPS * m + dist_tol
-    heap = np.empty((HEAP_SIZE, 7))
     corners = np.empty((8, 3))
+    root = np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0])
+    _box_corners(kind, x_t0, dx, root, corners)
+    if _excluded(corners, tol):
+        return np.inf  # the common case, decided before allocating the search
+    heap = np.empty((HEAP_SIZE, 7))
     half_corners = np.empty((8, 3))
     box = np.empty(7)
-    root = np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0])
     n = _heap_push(heap, 0, root, 0.0)
     checks = 0
     while n > 0:

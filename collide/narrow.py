@@ -142,7 +142,9 @@ def swept_contact_hulls(leaves, n_leaves, first, count, prim_ids, faces, face_ba
     Appends rows (t_first, t_last, tri_a, tri_b) (float64) to ``out`` (cap, 4):
     t_first is the earliest contact (conservative, see triangle_pair_toi) and
     t_last the latest one (the same test run backwards in time: 1 - toi of the
-    reversed motion; 1 when the triangles intersect at t = 1). Returns (out, n_out).
+    reversed motion; 1 when the triangles intersect at t = 1). Stops early once a
+    pair touches over the whole step (the union of the hulls is then [0, 1]).
+    Returns (out, n_out).
     """
     p0 = np.empty((3, 3))
     p1 = np.empty((3, 3))
@@ -173,4 +175,7 @@ def swept_contact_hulls(leaves, n_leaves, first, count, prim_ids, faces, face_ba
                 row[2] = tri_a
                 row[3] = tri_b
                 out, n_out = append_row(out, n_out, row)
+                if t_first == 0.0 and t_last == 1.0:
+                    # in contact for the whole step: no other pair can change the union
+                    return out, n_out
     return out, n_out

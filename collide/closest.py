@@ -8,6 +8,17 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def _dot(a, b):
+    # written out: numba's np.dot needs SciPy's BLAS, which collide does not depend on
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True)
+def _cross(a, b):
+    return np.array((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+
+
 @njit(cache=True)
 def closest_point_on_triangle(x, a, b, c):
     """Point of the closed triangle abc nearest to x (all (3,) float64).
@@ -18,25 +29,25 @@ def closest_point_on_triangle(x, a, b, c):
     """
     ab = b - a
     ac = c - a
-    normal = np.cross(ab, ac)
-    if np.dot(normal, normal) == 0.0:
+    normal = _cross(ab, ac)
+    if _dot(normal, normal) == 0.0:
         return _closest_on_edges(x, a, b, c)
     ax = x - a
-    d1 = np.dot(ab, ax)
-    d2 = np.dot(ac, ax)
+    d1 = _dot(ab, ax)
+    d2 = _dot(ac, ax)
     if d1 <= 0.0 and d2 <= 0.0:
         return a.copy()
     bx = x - b
-    d3 = np.dot(ab, bx)
-    d4 = np.dot(ac, bx)
+    d3 = _dot(ab, bx)
+    d4 = _dot(ac, bx)
     if d3 >= 0.0 and d4 <= d3:
         return b.copy()
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         return a + (d1 / (d1 - d3)) * ab
     cx = x - c
-    d5 = np.dot(ab, cx)
-    d6 = np.dot(ac, cx)
+    d5 = _dot(ab, cx)
+    d6 = _dot(ac, cx)
     if d6 >= 0.0 and d5 <= d6:
         return c.copy()
     vb = d5 * d2 - d1 * d6
@@ -52,10 +63,10 @@ def closest_point_on_triangle(x, a, b, c):
 @njit(cache=True)
 def closest_point_on_segment(x, a, b):
     ab = b - a
-    length2 = np.dot(ab, ab)
+    length2 = _dot(ab, ab)
     if length2 == 0.0:
         return a.copy()
-    t = min(max(np.dot(x - a, ab) / length2, 0.0), 1.0)
+    t = min(max(_dot(x - a, ab) / length2, 0.0), 1.0)
     return a + t * ab
 
 
@@ -64,7 +75,7 @@ def _closest_on_edges(x, a, b, c):
     best = closest_point_on_segment(x, a, b)
     for p, q in ((b, c), (c, a)):
         y = closest_point_on_segment(x, p, q)
-        if np.dot(y - x, y - x) < np.dot(best - x, best - x):
+        if _dot(y - x, y - x) < _dot(best - x, best - x):
             best = y
     return best
 
@@ -75,17 +86,17 @@ def closest_points_of_segments(p1, q1, p2, q2):
     d1 = q1 - p1
     d2 = q2 - p2
     r = p1 - p2
-    a = np.dot(d1, d1)
-    e = np.dot(d2, d2)
-    f = np.dot(d2, r)
+    a = _dot(d1, d1)
+    e = _dot(d2, d2)
+    f = _dot(d2, r)
     if a == 0.0 and e == 0.0:
         return p1.copy(), p2.copy()
     if a == 0.0:
         return p1.copy(), p2 + min(max(f / e, 0.0), 1.0) * d2
-    c = np.dot(d1, r)
+    c = _dot(d1, r)
     if e == 0.0:
         return p1 + min(max(-c / a, 0.0), 1.0) * d1, p2.copy()
-    b = np.dot(d1, d2)
+    b = _dot(d1, d2)
     denom = a * e - b * b
     s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 0.0 else 0.0
     t = (b * s + f) / e
@@ -101,9 +112,9 @@ def closest_points_of_segments(p1, q1, p2, q2):
 @njit(cache=True)
 def _edge_crossing(a, b, q):
     """Where segment ab crosses the plane of triangle q (3,3), or ab's midpoint."""
-    normal = np.cross(q[1] - q[0], q[2] - q[0])
-    da = np.dot(normal, a - q[0])
-    db = np.dot(normal, b - q[0])
+    normal = _cross(q[1] - q[0], q[2] - q[0])
+    da = _dot(normal, a - q[0])
+    db = _dot(normal, b - q[0])
     if da == db:
         return 0.5 * (a + b)
     t = min(max(da / (da - db), 0.0), 1.0)
@@ -122,21 +133,21 @@ def contact_point(p, q):
             b = tri[(i + 1) % 3]
             # a vertex against the other face
             y = closest_point_on_triangle(a, other[0], other[1], other[2])
-            gap = np.sqrt(np.dot(y - a, y - a))
+            gap = np.sqrt(_dot(y - a, y - a))
             if gap < best_gap:
                 best_gap = gap
                 best = 0.5 * (a + y)
             # an edge piercing the other face
             x = _edge_crossing(a, b, other)
             y = closest_point_on_triangle(x, other[0], other[1], other[2])
-            gap = np.sqrt(np.dot(y - x, y - x))
+            gap = np.sqrt(_dot(y - x, y - x))
             if gap < best_gap:
                 best_gap = gap
                 best = 0.5 * (x + y)
     for i in range(3):
         for j in range(3):
             s, t = closest_points_of_segments(p[i], p[(i + 1) % 3], q[j], q[(j + 1) % 3])
-            gap = np.sqrt(np.dot(s - t, s - t))
+            gap = np.sqrt(_dot(s - t, s - t))
             if gap < best_gap:
                 best_gap = gap
                 best = 0.5 * (s + t)

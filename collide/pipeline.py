@@ -149,7 +149,7 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
                    for s, e in chunks]
         index = {f.key: i for i, f in enumerate(futures)}
         results = [None] * len(chunks)
-        for future in dask_as_completed(futures):
+        for future in dask_as_completed(futures, loop=client.loop):
             i = index[future.key]
             results[i] = future.result()
             if progress is not None:

@@ -140,3 +140,21 @@ def test_existing_output_replaced_only_by_complete_file(two_boxes, tmp_path):
     proc = run_cli("scan", meshes, traj, "-o", out, "--mode", "discrete")
     assert proc.returncode == 0
     assert collide.read_contacts(out).contacts["t_begin"].size == 1
+
+
+def test_large_rotation_between_frames_warns_once(tmp_path):
+    from conftest import write_trajectory
+    meshes = tmp_path / "m"
+    meshes.mkdir()
+    write_box(meshes / "spinner.stl")
+    write_box(meshes / "far.stl", centre=(50, 0, 0))
+    angle = np.radians([0.0, 5.0, 30.0, 35.0])          # 25 degrees between frames 1 and 2
+    q = np.zeros((4, 1, 4))
+    q[:, 0, 0], q[:, 0, 3] = np.cos(angle / 2), np.sin(angle / 2)
+    traj = write_trajectory(tmp_path / "t.h5", np.arange(4.0), ["spinner"], np.zeros((4, 1, 3)), q)
+    proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5")
+    assert proc.returncode == 0, proc.stderr
+    warnings = [line for line in proc.stderr.splitlines() if "turns by" in line]
+    assert len(warnings) == 1 and "'spinner'" in warnings[0] and "frames 1 and 2" in warnings[0]
+    quiet = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete")
+    assert "turns by" not in quiet.stderr

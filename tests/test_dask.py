@@ -1,0 +1,26 @@
+"""--scheduler: the same scan as tasks on a Dask distributed cluster gives the same result."""
+import numpy as np
+import pytest
+
+import collide
+from conftest import REPO, run_cli
+
+
+def test_scan_on_a_local_dask_cluster_matches_the_local_scan():
+    distributed = pytest.importorskip("distributed")
+    meshes, traj = REPO / "examples" / "tunnel" / "meshes", REPO / "examples" / "tunnel" / "traj.h5"
+    local = collide.scan(meshes, traj, triangle_pairs=True)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        remote = collide.scan(meshes, traj, triangle_pairs=True, scheduler=cluster.scheduler_address)
+    assert remote.contacts["t_begin"].size == 1
+    for name in local.contacts:
+        assert np.array_equal(local.contacts[name], remote.contacts[name], equal_nan=True), name
+
+
+def test_unreachable_scheduler_is_a_clear_error(two_boxes, tmp_path):
+    pytest.importorskip("distributed")
+    meshes, traj = two_boxes
+    proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--scheduler", "tcp://127.0.0.1:9")
+    assert proc.returncode == 2 and "Dask scheduler" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "c.h5").exists()

@@ -20,32 +20,15 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE.parent / "tests"))
 
 from collide.discrete import SKIP_STATIC_PAIRS, scan_frames  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.packed import pack_scene  # noqa: E402
 from collide.pipeline import _run_discrete  # noqa: E402
+from fcl_poses import fcl_poses  # noqa: E402
 
 DATA = HERE.parent / "tests" / "data"
-
-
-def euler_xyz(angles):
-    a, b, c = angles.T
-    one, zero = np.ones_like(a), np.zeros_like(a)
-    rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, np.cos(a), -np.sin(a)], -1),
-                   np.stack([zero, np.sin(a), np.cos(a)], -1)], 1)
-    ry = np.stack([np.stack([np.cos(b), zero, np.sin(b)], -1), np.stack([zero, one, zero], -1),
-                   np.stack([-np.sin(b), zero, np.cos(b)], -1)], 1)
-    rz = np.stack([np.stack([np.cos(c), -np.sin(c), zero], -1), np.stack([np.sin(c), np.cos(c), zero], -1),
-                   np.stack([zero, zero, one], -1)], 1)
-    return rz @ ry @ rx
-
-
-def fcl_poses(n, seed=0):
-    rng = np.random.default_rng(seed)
-    rot = euler_xyz(rng.uniform(-np.pi, np.pi, (n, 3)))
-    trans = rng.uniform([-3000, -3000, 0], [3000, 3000, 3000], (n, 3))
-    return rot, trans
 
 
 def run_collide(env, rob, rot, trans, split, workers):
@@ -146,7 +129,7 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     env, rob = load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj")
-    rot, trans = fcl_poses(args.poses)
+    rot, trans = fcl_poses(args.poses, seed=0)
     n = args.poses
     times, reference = run_collide(env, rob, rot, trans, args.split, args.workers)
     n_pairs = sum(len(s) for s in reference)

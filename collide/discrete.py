@@ -36,21 +36,33 @@ def object_margins(ps, rp0, rp1, out):
 
 
 @njit(cache=True)
-def object_world_boxes(ps, rp, margin_out):
-    """World boxes (N, 3) lo and hi of every object's root box at poses rp (N, 3, 4).
-
-    Also fills margin_out (N,): each object's rounding margin (length units).
-    """
-    n = rp.shape[0]
+def object_world_boxes(ps, rp0, rp1, extra, margin_out):
+    """World boxes lo, hi (N, 3) of every object's root box moving from poses rp0 to
+    rp1 (N, 3, 4) (pass the same poses twice for a still frame), widened by each
+    object's rounding margin (written to margin_out (N,)) plus ``extra``."""
+    n = rp0.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
-    object_margins(ps, rp, rp, margin_out)
+    object_margins(ps, rp0, rp1, margin_out)
     for o in range(n):
         root = ps.root[ps.object_mesh[o]]
-        w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp[o], rp[o])
-        lo[o] = w_lo - margin_out[o]
-        hi[o] = w_hi + margin_out[o]
+        w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o])
+        lo[o] = w_lo - (margin_out[o] + extra)
+        hi[o] = w_hi + (margin_out[o] + extra)
     return lo, hi
+
+
+@njit(cache=True)
+def pair_leaves(ps, rp0, rp1, a, b, rule, margin, pose, leaves):
+    """Overlapping BVH leaf pairs of objects a and b (broad.overlapping_leaves) for poses
+    rp0 -> rp1 (N, 3, 4); pose (4, 3, 4) is scratch. Returns (leaves, count)."""
+    pose[0] = rp0[a]
+    pose[1] = rp1[a]
+    pose[2] = rp0[b]
+    pose[3] = rp1[b]
+    return overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
+                              ps.root[ps.object_mesh[a]], ps.root[ps.object_mesh[b]], pose, rule,
+                              margin, leaves)
 
 
 @njit(cache=True)
@@ -106,29 +118,21 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
     row = np.empty(5, np.int64)
     for f in range(frame_start, frame_stop):
         rp = poses[f]
-        lo, hi = object_world_boxes(ps, rp, margin)
+        lo, hi = object_world_boxes(ps, rp, rp, 0.0, margin)
         candidates = sweep_and_prune(lo, hi)
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
             if not pair_selected(pair_filter, static, a, b):
                 continue
-            mesh_a = ps.object_mesh[a]
-            mesh_b = ps.object_mesh[b]
-            pose[0] = rp[a]
-            pose[1] = rp[a]
-            pose[2] = rp[b]
-            pose[3] = rp[b]
-            leaves, n_leaves = overlapping_leaves(
-                ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                ps.root[mesh_a], ps.root[mesh_b], pose, RULE_POSE, margin[a] + margin[b], leaves)
+            leaves, n_leaves = pair_leaves(ps, rp, rp, a, b, RULE_POSE, margin[a] + margin[b], pose, leaves)
             if n_leaves == 0:
                 continue
             ensure_world(ps, rp, a, f, static, stamp, world)
             ensure_world(ps, rp, b, f, static, stamp, world)
             tri, n_tri = intersecting_triangles(
                 leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
-                ps.face_start[mesh_a], ps.face_start[mesh_b],
+                ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
                 world, ps.world_start[a], ps.world_start[b], tri, 0)
             if n_tri == 0:
                 continue

@@ -233,7 +233,7 @@ def _fill_contact_points(contacts, where, scene, poses):
         contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
 
 
-def _check_options(mode, scheduler, workers):
+def _check_options(mode, workers):
     if mode not in MODES:
         raise UsageError(f"unknown mode {mode!r}; expected one of {', '.join(MODES)}")
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
@@ -252,7 +252,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     With ``output`` the result is also written there (atomically). Returns a
     ScanResult.
     """
-    workers = _check_options(mode, scheduler, workers)
+    workers = _check_options(mode, workers)
     timings = {}
     start = time.perf_counter()
     scene = load_scene(meshes, trajectory)

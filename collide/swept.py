@@ -24,8 +24,8 @@ import numpy as np
 from numba import njit
 
 from .analytic import sphere_overlap_window
-from .broad import RULE_SWEPT, overlapping_leaves, sweep_and_prune, world_box
-from .discrete import ensure_world, object_margins, pair_selected
+from .broad import RULE_SWEPT, sweep_and_prune
+from .discrete import ensure_world, object_world_boxes, pair_leaves, pair_selected
 from .narrow import append_row, swept_contact_hulls
 
 
@@ -97,14 +97,7 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, time_t
     for k in range(step_start, step_stop):
         rp0 = poses[k]
         rp1 = poses[k + 1]
-        lo = np.empty((n_objects, 3))
-        hi = np.empty((n_objects, 3))
-        object_margins(ps, rp0, rp1, margin)
-        for o in range(n_objects):
-            root = ps.root[ps.object_mesh[o]]
-            lo[o], hi[o] = world_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o])
-            lo[o] -= margin[o] + dist_tol
-            hi[o] += margin[o] + dist_tol
+        lo, hi = object_world_boxes(ps, rp0, rp1, dist_tol, margin)
         candidates = sweep_and_prune(lo, hi)
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
@@ -114,15 +107,7 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, time_t
             pair_margin = margin[a] + margin[b] + dist_tol
             if not spheres_may_meet(ps, rp0, rp1, a, b, pair_margin):
                 continue
-            mesh_a = ps.object_mesh[a]
-            mesh_b = ps.object_mesh[b]
-            pose[0] = rp0[a]
-            pose[1] = rp1[a]
-            pose[2] = rp0[b]
-            pose[3] = rp1[b]
-            leaves, n_leaves = overlapping_leaves(
-                ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                ps.root[mesh_a], ps.root[mesh_b], pose, RULE_SWEPT, pair_margin, leaves)
+            leaves, n_leaves = pair_leaves(ps, rp0, rp1, a, b, RULE_SWEPT, pair_margin, pose, leaves)
             if n_leaves == 0:
                 continue
             for o in (a, b):
@@ -130,7 +115,7 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, time_t
                 ensure_world(ps, rp1, o, k + 1, static, stamp1, world1)
             hulls, n_hulls = swept_contact_hulls(
                 leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
-                ps.face_start[mesh_a], ps.face_start[mesh_b], world0, world1,
+                ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
                 ps.world_start[a], ps.world_start[b], time_tol, dist_tol, hulls, 0)
             if n_hulls == 0:
                 continue

@@ -13,28 +13,17 @@ from collide.load import load_mesh
 from collide.packed import world_vertices
 from collide.predicates import triangles_intersect
 from conftest import DATA, write_trajectory
+from fcl_poses import fcl_poses
 
 N_POSES = 40
 
 
-def euler_xyz(angles):
-    """Rotation matrices (n, 3, 3) = Rz(c) @ Ry(b) @ Rx(a) for angles (n, 3) = (a, b, c)."""
-    a, b, c = angles.T
-    one, zero = np.ones_like(a), np.zeros_like(a)
-    rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, np.cos(a), -np.sin(a)], -1),
-                   np.stack([zero, np.sin(a), np.cos(a)], -1)], 1)
-    ry = np.stack([np.stack([np.cos(b), zero, np.sin(b)], -1), np.stack([zero, one, zero], -1),
-                   np.stack([-np.sin(b), zero, np.cos(b)], -1)], 1)
-    rz = np.stack([np.stack([np.cos(c), -np.sin(c), zero], -1), np.stack([np.sin(c), np.cos(c), zero], -1),
-                   np.stack([zero, zero, one], -1)], 1)
-    return rz @ ry @ rx
-
-
-def fcl_like_poses(rng, n):
-    """Translation uniform in [-3000,3000]^2 x [0,3000], three uniform Euler angles (FCL's test)."""
+def fcl_like_matrices(n, seed=2026):
+    """(n, 1, 4, 4) pose matrices of FCL's test distribution."""
+    rotation, translation = fcl_poses(n, seed)
     matrix = np.zeros((n, 1, 4, 4))
-    matrix[:, 0, :3, :3] = euler_xyz(rng.uniform(-np.pi, np.pi, (n, 3)))
-    matrix[:, 0, :3, 3] = rng.uniform([-3000, -3000, 0], [3000, 3000, 3000], (n, 3))
+    matrix[:, 0, :3, :3] = rotation
+    matrix[:, 0, :3, 3] = translation
     matrix[:, 0, 3, 3] = 1.0
     return matrix
 
@@ -58,7 +47,7 @@ def envrob(tmp_path_factory):
     meshes.mkdir()
     for name in ("env.obj", "rob.obj"):
         (meshes / name).write_bytes((DATA / name).read_bytes())
-    matrix = fcl_like_poses(np.random.default_rng(2026), N_POSES)
+    matrix = fcl_like_matrices(N_POSES)
     traj = write_trajectory(tmp / "traj.h5", np.arange(N_POSES, dtype=float), ["rob"], matrix=matrix)
     env, rob = load_mesh(meshes / "env.obj"), load_mesh(meshes / "rob.obj")
     reference = {}
@@ -108,7 +97,7 @@ def test_peer_fcl_agrees_on_colliding_frames(envrob):
         return m
 
     env_obj = fcl.CollisionObject(model(env), fcl.Transform())
-    matrix = fcl_like_poses(np.random.default_rng(2026), N_POSES)
+    matrix = fcl_like_matrices(N_POSES)
     colliding = []
     for f in range(N_POSES):
         rob_obj = fcl.CollisionObject(model(rob), fcl.Transform(matrix[f, 0, :3, :3], matrix[f, 0, :3, 3]))

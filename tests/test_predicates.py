@@ -111,3 +111,17 @@ def test_random_generic_pairs_match_exact_reference():
         p = rng.normal(size=(3, 3))
         q = rng.normal(size=(3, 3)) * 0.7 + 0.2
         assert triangles_intersect(p, q) == triangles_intersect_exact(p, q)
+
+
+def test_second_reference_hand_cases_and_grid_cases():
+    """The 76 certified hand cases and grid cases of tests/naive.py (an independent exact
+    reference with its own proofs of each answer)."""
+    naive = pytest.importorskip("naive")
+    for name, p, q, expected in naive.hand_cases():
+        p, q = np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(q, dtype=np.float64)
+        assert triangles_intersect(p, q) == expected, name
+        assert triangles_intersect(q, p) == expected, name
+    rng = np.random.default_rng(RNG_SEED + 4)
+    for p, q in naive.random_near_degenerate_cases(rng, 300):
+        p, q = np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(q, dtype=np.float64)
+        assert triangles_intersect(p, q) == naive.triangles_intersect_exact(p, q)

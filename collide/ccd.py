@@ -51,7 +51,7 @@ _EPS = 2.0 ** -53
 #: rounding bound per axis, as a multiple of eps * max |coordinate| (derivation above)
 ROUNDING_FACTOR = 128.0
 #: box checks per query before giving a conservative answer
-MAX_CHECKS = 200_000
+MAX_CHECKS = 50_000
 #: live boxes per query before giving a conservative answer
 HEAP_SIZE = 2048
 #: boxes narrower than this (in t, u or v) are not split further
@@ -61,12 +61,12 @@ _MIN_WIDTH = 2.0 ** -60
 # --- F at the corners of a box ------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def _f_value(kind, x_t0, dx, t, u, v, axis):
+def _f_value(kind, x_t0, x_t1, t, u, v, axis):
     """One coordinate of F at (t, u, v), evaluated in the order the bound assumes."""
-    p0 = x_t0[0, axis] + t * dx[0, axis]
-    p1 = x_t0[1, axis] + t * dx[1, axis]
-    p2 = x_t0[2, axis] + t * dx[2, axis]
-    p3 = x_t0[3, axis] + t * dx[3, axis]
+    p0 = x_t0[0, axis] + t * (x_t1[0, axis] - x_t0[0, axis])
+    p1 = x_t0[1, axis] + t * (x_t1[1, axis] - x_t0[1, axis])
+    p2 = x_t0[2, axis] + t * (x_t1[2, axis] - x_t0[2, axis])
+    p3 = x_t0[3, axis] + t * (x_t1[3, axis] - x_t0[3, axis])
     if kind == VERTEX_FACE:  # p0 = v, p1 = f0, p2 = f1, p3 = f2
         return ((p0 - p1) - u * (p2 - p1)) - v * (p3 - p1)
     # p0 = ea0, p1 = ea1, p2 = eb0, p3 = eb1
@@ -74,14 +74,14 @@ def _f_value(kind, x_t0, dx, t, u, v, axis):
 
 
 @njit(cache=True)
-def _box_corners(kind, x_t0, dx, box, corners):
+def _box_corners(kind, x_t0, x_t1, box, corners):
     """corners (8, 3) = F at the 8 corners of box (t_lo, t_hi, u_lo, u_hi, v_lo, v_hi)."""
     for c in range(8):
         t = box[0] if (c & 1) == 0 else box[1]
         u = box[2] if (c & 2) == 0 else box[3]
         v = box[4] if (c & 4) == 0 else box[5]
         for axis in range(3):
-            corners[c, axis] = _f_value(kind, x_t0, dx, t, u, v, axis)
+            corners[c, axis] = _f_value(kind, x_t0, x_t1, t, u, v, axis)
 
 
 @njit(cache=True)
@@ -136,23 +136,32 @@ def _small_in_space(corners, tol):
 
 
 @njit(cache=True)
-def _time_split_excludes_a_half(kind, x_t0, dx, box, tol, scratch):
+def _time_split_excludes_a_half(kind, x_t0, x_t1, box, corners, tol, mid_face):
     """Halving the box in time drops one half at once.
 
     Preferring such splits keeps boxes that straddle a contact time from
     multiplying along (u, v) when the contact set is a line or an area
     (parallel edges, coplanar sliding), which would otherwise exhaust the search.
+    Only the 4 corners at the middle time are new; the halves share the box's
+    own corners at t_lo (even indices of ``corners``) and t_hi (odd ones).
     """
     if box[1] - box[0] <= _MIN_WIDTH:
         return False
     mid = 0.5 * (box[0] + box[1])
-    half = box[:6].copy()
-    for side in range(2):
-        half[0] = box[0] if side == 0 else mid
-        half[1] = mid if side == 0 else box[1]
-        _box_corners(kind, x_t0, dx, half, scratch)
-        if _excluded(scratch, tol):
-            return True
+    for c in range(4):
+        u = box[2] if (c & 1) == 0 else box[3]
+        v = box[4] if (c & 2) == 0 else box[5]
+        for axis in range(3):
+            mid_face[c, axis] = _f_value(kind, x_t0, x_t1, mid, u, v, axis)
+    for side in range(2):  # 0: [t_lo, mid] with corners 0, 2, 4, 6; 1: [mid, t_hi] with 1, 3, 5, 7
+        for axis in range(3):
+            lo = mid_face[:, axis].min()
+            hi = mid_face[:, axis].max()
+            for c in range(side, 8, 2):
+                lo = min(lo, corners[c, axis])
+                hi = max(hi, corners[c, axis])
+            if lo > tol[axis] or hi < -tol[axis]:
+                return True
     return False
 
 
@@ -200,24 +209,47 @@ def _heap_pop(heap, n, out):
     return n
 
 
+@njit(cache=True, inline="always")
+def _tolerances(x_t0, x_t1, dist_tol):
+    """Per axis (a 3-tuple): the rounding bound of F plus dist_tol (see the module docstring)."""
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    for r in range(4):
+        m0 = max(m0, abs(x_t0[r, 0]), abs(x_t1[r, 0]))
+        m1 = max(m1, abs(x_t0[r, 1]), abs(x_t1[r, 1]))
+        m2 = max(m2, abs(x_t0[r, 2]), abs(x_t1[r, 2]))
+    scale = ROUNDING_FACTOR * _EPS
+    return (scale * m0 + dist_tol, scale * m1 + dist_tol, scale * m2 + dist_tol)
+
+
+@njit(cache=True, inline="always")
+def _root_excluded(kind, x_t0, x_t1, tol):
+    """_excluded for the whole domain [0, 1]^3, without storing corners."""
+    for axis in range(3):
+        lo = np.inf
+        hi = -np.inf
+        for c in range(8):
+            value = _f_value(kind, x_t0, x_t1, float(c & 1), float((c >> 1) & 1), float((c >> 2) & 1), axis)
+            lo = min(lo, value)
+            hi = max(hi, value)
+        if lo > tol[axis] or hi < -tol[axis]:
+            return True
+    return False
+
+
 # --- the search --------------------------------------------------------------------------
 
 @njit(cache=True)
 def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
-    dx = x_t1 - x_t0
-    tol = np.empty(3)  # per axis: rounding bound + distance tolerance
-    for axis in range(3):
-        m = 0.0
-        for r in range(4):
-            m = max(m, abs(x_t0[r, axis]), abs(x_t1[r, axis]))
-        tol[axis] = ROUNDING_FACTOR * _EPS * m + dist_tol
+    tol = _tolerances(x_t0, x_t1, dist_tol)
+    if _root_excluded(kind, x_t0, x_t1, tol):
+        return np.inf  # the common case, decided without allocating anything
     corners = np.empty((8, 3))
     root = np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0])
-    _box_corners(kind, x_t0, dx, root, corners)
-    if _excluded(corners, tol):
-        return np.inf  # the common case, decided before allocating the search
     heap = np.empty((HEAP_SIZE, 7))
-    half_corners = np.empty((8, 3))
+    mid_face = np.empty((4, 3))
+    half = np.empty(6)
     box = np.empty(7)
     n = _heap_push(heap, 0, root, 0.0)
     checks = 0
@@ -228,13 +260,13 @@ def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
             return box[0]
         if kind == VERTEX_FACE and box[2] + box[4] > 1.0:
             continue  # entirely outside the triangle u + v <= 1
-        _box_corners(kind, x_t0, dx, box, corners)
+        _box_corners(kind, x_t0, x_t1, box, corners)
         if _excluded(corners, tol):
             continue
         small = _small_in_space(corners, tol)
         if small and box[1] - box[0] <= time_tol:
             return box[0]
-        if small or _time_split_excludes_a_half(kind, x_t0, dx, box, tol, half_corners):
+        if small or _time_split_excludes_a_half(kind, x_t0, x_t1, box, corners, tol, mid_face):
             dim = 0
         else:
             dim = _split_dimension(corners, box)
@@ -243,7 +275,7 @@ def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
         if n + 2 > HEAP_SIZE:
             return box[0]  # the earliest live box: conservative
         mid = 0.5 * (box[2 * dim] + box[2 * dim + 1])
-        half = box[:6].copy()
+        half[:] = box[:6]
         half[2 * dim + 1] = mid
         n = _heap_push(heap, n, half, box[6] + 1.0)
         half[2 * dim + 1] = box[2 * dim + 1]

@@ -181,6 +181,14 @@ def _run_swept(ps, poses, static, time_tol, dist_tol, workers, progress, schedul
     return np.concatenate(results).reshape(-1, 7)
 
 
+def _static_steps(hits, static, n_steps):
+    """Step rows (R, 7) for pairs of static objects: touching at frame 0 means touching
+    throughout (the swept kernel skips them since they never move)."""
+    first = hits[(hits[:, 0] == 0) & static[hits[:, 1]] & static[hits[:, 2]]]
+    rows = [(k, a, b, 0.0, 1.0, ta, tb) for _, a, b, _, ta, tb in first.tolist() for k in range(n_steps)]
+    return np.array(rows, dtype=np.float64).reshape(-1, 7)
+
+
 def _repeat_over_frames(rows, n_frames):
     """Rows of frame 0 (first column = frame) repeated for every frame."""
     out = np.repeat(rows[None, :, :], n_frames, axis=0)
@@ -271,6 +279,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         rotation_warning(scene.names, poses, index)
         dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
         steps = _run_swept(ps, poses, scene.static, time_tol, dist_tol, workers, work, scheduler)
+        steps = np.concatenate([steps, _static_steps(hits, scene.static, poses.shape[0] - 1)])
         contacts, where = intervals_from_steps(steps, hits, frame_time)
     else:
         contacts, where = intervals_from_hits(hits, frame_time)

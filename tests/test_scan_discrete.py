@@ -75,6 +75,11 @@ def test_shared_mesh_and_static_pairs(tmp_path):
     rows = list(zip(c["object_a"].tolist(), c["object_b"].tolist(),
                     c["frame_begin"].tolist(), c["frame_end"].tolist()))
     assert rows == [(1, 3, 2, 2), (2, 3, 0, 4)]
+    # continuous mode: the static pair is one interval over the whole range too
+    c = collide.scan(meshes, traj).contacts
+    static_rows = [(b, e) for a, o, b, e in zip(c["object_a"], c["object_b"], c["t_begin"], c["t_end"])
+                   if (a, o) == (2, 3)]
+    assert static_rows == [(0.0, 2.0)]
 
 
 def test_frames_option_selects_a_range(two_boxes):

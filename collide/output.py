@@ -30,6 +30,19 @@ class Contacts(NamedTuple):
     provenance: dict        #: provenance/ attributes
 
 
+def check_output_path(path):
+    """Raise InputError unless ``path`` can become an output file; returns its folder."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(path, "output folder does not exist", "a path in an existing folder")
+    if path.is_dir():
+        raise InputError(path, "is a folder", "an output file path")
+    if not os.access(folder, os.W_OK):
+        raise InputError(path, "output folder is not writable", "a writable folder")
+    return folder
+
+
 @contextmanager
 def atomic_path(path):
     """Yield a temporary path next to ``path``; rename it to ``path`` on success.
@@ -38,10 +51,11 @@ def atomic_path(path):
     removed and ``path`` is left as it was.
     """
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(path, "output folder does not exist", "a path in an existing folder")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    folder = check_output_path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise InputError(path, f"cannot write in its folder ({exc.strerror})", "a writable folder") from None
     os.close(fd)
     try:
         yield Path(tmp)

@@ -20,6 +20,7 @@ from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, int
 from .discrete import ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
 from .errors import UsageError
 from .load import load_scene
+from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
 from .swept import scan_intervals
 
@@ -261,6 +262,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     ScanResult.
     """
     workers = _check_options(mode, workers)
+    if output is not None:
+        check_output_path(output)  # fail before the work, not after
     timings = {}
     start = time.perf_counter()
     scene = load_scene(meshes, trajectory)
@@ -315,6 +318,5 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         "versions": result.versions,
     }
     if output is not None:
-        from .output import write_contacts
         write_contacts(output, result)
     return result

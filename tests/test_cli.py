@@ -66,7 +66,8 @@ def test_usage_errors_exit_2(two_boxes, tmp_path):
     meshes, traj = two_boxes
     for args in (["scan", meshes, traj, "--split", "middle"], ["scan", meshes, traj, "--frames", "5:2"],
                  ["scan", meshes, traj, "--frames", "x"], ["scan", meshes], ["frobnicate"],
-                 ["scan", meshes, traj, "-o", tmp_path / "no" / "such" / "dir.h5", "--mode", "discrete"]):
+                 ["scan", meshes, traj, "-o", tmp_path / "no" / "such" / "dir.h5", "--mode", "discrete"],
+                 ["scan", meshes, traj, "-o", tmp_path, "--mode", "discrete"]):
         proc = run_cli(*args)
         assert proc.returncode == 2, (args, proc.stderr)
         assert "Traceback" not in proc.stderr

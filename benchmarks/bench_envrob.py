@@ -26,7 +26,7 @@ from collide.discrete import SKIP_STATIC_PAIRS, scan_frames  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.packed import pack_scene  # noqa: E402
 from collide.pipeline import _run_discrete  # noqa: E402
-from fcl_poses import fcl_poses  # noqa: E402
+from fcl_poses import fcl_model, fcl_poses  # noqa: E402
 
 DATA = HERE.parent / "tests" / "data"
 
@@ -59,15 +59,8 @@ def run_collide(env, rob, rot, trans, split, workers):
 def run_fcl(env, rob, rot, trans):
     import fcl
 
-    def model(mesh):
-        m = fcl.BVHModel()
-        m.beginModel(len(mesh.vertices), len(mesh.faces))
-        m.addSubModel(mesh.vertices, mesh.faces)
-        m.endModel()
-        return m
-
-    env_obj = fcl.CollisionObject(model(env), fcl.Transform())
-    rob_obj = fcl.CollisionObject(model(rob), fcl.Transform())
+    env_obj = fcl.CollisionObject(fcl_model(fcl, env), fcl.Transform())
+    rob_obj = fcl.CollisionObject(fcl_model(fcl, rob), fcl.Transform())
     out = {}
     sets = []
     for mode, max_contacts in (("all pairs", 1_000_000), ("yes/no", 1)):

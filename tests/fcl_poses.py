@@ -1,4 +1,4 @@
-"""Random rigid poses drawn like FCL's own mesh-mesh test (shared by tests and benchmarks)."""
+"""Random rigid poses drawn like FCL's own mesh-mesh test, and python-fcl models (shared by tests and benchmarks)."""
 import numpy as np
 
 
@@ -22,3 +22,12 @@ def fcl_poses(n, seed):
     rotation = euler_xyz(rng.uniform(-np.pi, np.pi, (n, 3)))
     translation = rng.uniform([-3000, -3000, 0], [3000, 3000, 3000], (n, 3))
     return rotation, translation
+
+
+def fcl_model(fcl, mesh):
+    """A python-fcl BVHModel of a collide Mesh (``fcl`` is the imported module)."""
+    model = fcl.BVHModel()
+    model.beginModel(len(mesh.vertices), len(mesh.faces))
+    model.addSubModel(mesh.vertices, mesh.faces)
+    model.endModel()
+    return model

@@ -13,7 +13,7 @@ from collide.load import load_mesh
 from collide.packed import world_vertices
 from collide.predicates import triangles_intersect
 from conftest import DATA, write_trajectory
-from fcl_poses import fcl_poses
+from fcl_poses import fcl_model, fcl_poses
 
 N_POSES = 40
 
@@ -89,18 +89,11 @@ def test_peer_fcl_agrees_on_colliding_frames(envrob):
     meshes, traj, reference = envrob
     env, rob = load_mesh(meshes / "env.obj"), load_mesh(meshes / "rob.obj")
 
-    def model(mesh):
-        m = fcl.BVHModel()
-        m.beginModel(len(mesh.vertices), len(mesh.faces))
-        m.addSubModel(mesh.vertices, mesh.faces)
-        m.endModel()
-        return m
-
-    env_obj = fcl.CollisionObject(model(env), fcl.Transform())
+    env_obj = fcl.CollisionObject(fcl_model(fcl, env), fcl.Transform())
     matrix = fcl_like_matrices(N_POSES)
     colliding = []
     for f in range(N_POSES):
-        rob_obj = fcl.CollisionObject(model(rob), fcl.Transform(matrix[f, 0, :3, :3], matrix[f, 0, :3, 3]))
+        rob_obj = fcl.CollisionObject(fcl_model(fcl, rob), fcl.Transform(matrix[f, 0, :3, :3], matrix[f, 0, :3, 3]))
         if fcl.collide(env_obj, rob_obj, fcl.CollisionRequest(), fcl.CollisionResult()):
             colliding.append(f)
     assert colliding == sorted({f for f, _, _ in reference})

@@ -1,45 +1,102 @@
-"""Certified continuous collision detection (CCD) of moving primitives.
+"""Certified continuous collision detection (CCD) of linearly moving primitives.
 
-Two queries, each over one time step in which every vertex moves on a straight
-line from its position at t = 0 to its position at t = 1:
+Two queries over one time step in which every vertex moves on a straight line
+from its position at t = 0 to its position at t = 1 (``x(t) = x_t0 + t (x_t1 - x_t0)``):
 
-- vertex-face: point ``v`` against the closed triangle ``f0 f1 f2``;
-- edge-edge: closed segment ``ea0 ea1`` against closed segment ``eb0 eb1``.
+- vertex-face: the point ``v`` against the closed triangle ``f0 f1 f2``;
+- edge-edge: the closed segment ``ea0 ea1`` against the closed segment ``eb0 eb1``.
 
-Both return a *conservative* earliest time of contact: never later than the
-true first contact t*, and at most ``time_tol`` earlier (``inf`` when the
-primitives never come within ``dist_tol``). They never miss a contact.
+Both return a conservative earliest time of contact ``toi`` in [0, 1], or inf.
 
-Method (inclusion-based root finding, in the spirit of Wang et al. 2021,
-"Tight-Inclusion"): contact means F(t, u, v) = 0 for some (t, u, v) in the
-domain, with
+Guarantees. Call the primitives "within d" at time t when some point of one and some
+point of the other differ by at most d on every axis (x, y, z). Let delta be the
+rounding bound derived below (128 * 2^-53 ~ 1.4e-14 times the largest |coordinate|
+of the query, per axis).
 
-    vertex-face: F = v(t) - f0(t) - u (f1(t) - f0(t)) - v (f2(t) - f0(t)),
-                 t, u, v in [0, 1], u + v <= 1
-    edge-edge:   F = ea0(t) + u (ea1(t) - ea0(t)) - eb0(t) - v (eb1(t) - eb0(t)),
-                 t, u, v in [0, 1]
+- No false negative: if the primitives are within ``dist_tol`` (in particular, if
+  they touch) at some first time t*, then ``toi <= t*``.
+- False positives only within the tolerances: if ``toi`` is finite, the primitives
+  are within ``dist_tol + 3 delta`` at some time t_c with
+  ``toi <= t_c <= toi + time_tol`` (up to one rounding of t). Hence also
+  ``toi >= t* - time_tol`` when t* is the first time they are within that distance.
+- The one exception: a query that exhausts the work caps (``MAX_CHECKS`` box checks,
+  ``HEAP_SIZE`` live boxes, or boxes too narrow to split) returns the start of the
+  earliest box it could not rule out: still never later than t*, but with no
+  near-contact certificate. This does not happen on the benchmark queries.
 
-and x(t) = x_t0 + t (x_t1 - x_t0). F is affine in each of t, u, v separately,
-so over a box of (t, u, v) each coordinate of F lies between the smallest and
-largest of its values at the box's 8 corners. A box whose corner values, widened
-by the rounding bound below plus ``dist_tol``, exclude 0 on some axis holds no
-contact and is dropped; otherwise it is split in two. Boxes are visited in
-order of their earliest time, so the first box that is small enough (time
-width <= time_tol, F range within the tolerances) gives the answer: its lower
-time bound is <= t*, because the box holding t* was never dropped.
+Method: an inclusion-based root finder in the spirit of Tight-Inclusion (Wang et al.
+2021). Contact means F(t, u, v) = 0 for some (t, u, v) in the domain, with
 
-Rounding bound. Corner values are computed as x(t) = x_t0 + t * (x_t1 - x_t0),
-then (vertex-face) (v - f0) - u (f1 - f0) - v (f2 - f0), (edge-edge)
-(ea0 - eb0) + u (ea1 - ea0) - v (eb1 - eb0), with t, u, v dyadic (exact).
-With m the largest |coordinate| of the 8 input points on an axis and
-eps = 2^-53: each x(t) is within 5 eps m of its exact value and has magnitude
-<= m (1 + 5 eps); each difference of two is within 12 eps m; each product with
-u or v within 14 eps m; the three-term sum within 12 + 14 + 14 + (2 + 4 + 6) eps m
-= 52 eps m. We use 128 eps m per axis (the ignored O(eps^2) terms are far
-smaller than the slack). Inputs must be free of overflow/underflow.
+    vertex-face: F = v(t) - [(1 - u - v) f0(t) + u f1(t) + v f2(t)]
+                   = (v - f0) - u (f1 - f0) - v (f2 - f0),   t, u, v >= 0, u + v <= 1, t <= 1
+    edge-edge:   F = ea0(t) + u (ea1(t) - ea0(t)) - eb0(t) - v (eb1(t) - eb0(t))
+                   = (ea0 - eb0) + u (ea1 - ea0) - v (eb1 - eb0),   t, u, v in [0, 1]
 
-If a query needs more than ``MAX_CHECKS`` box checks or more than ``HEAP_SIZE``
-live boxes, the earliest live box's lower time is returned: still conservative.
+F is affine in each of t, u, v separately (multilinear), so over a box of (t, u, v)
+each coordinate of F, and any fixed linear combination n . F of them, lies between
+the smallest and largest of its values at the 8 corners of the box. Boxes wait in a
+min-heap ordered by their start time (deeper boxes first on ties). Taking the first:
+
+- excluded, dropped: on some axis all 8 corner values are > dist_tol + delta, or all
+  are < -(dist_tol + delta); or the same holds for n . F with n the normal of the two
+  edge directions (the face normal for vertex-face) at the box's middle time, with
+  the bound sum_i |n_i| (dist_tol + delta_i) (derivation below). The exact F then
+  stays beyond dist_tol on that axis (or direction) all over the box: no contact.
+- certify: a regularised Gauss-Newton step toward F = 0 proposes a point
+  (t_c, u_c, v_c) of the box and of the domain -- with t_c the box's start, then
+  anywhere in the box, then (for a box at most time_tol long) its end. F is computed
+  there afresh; if every axis is within dist_tol + 2 delta, the exact F is within
+  dist_tol + 3 delta: a certified near contact at t_c. The earliest such time is kept
+  as t_near. (The guess may be poor; only the check of the fresh values matters.)
+- otherwise the box is split in two: in time when that drops one half at once, or
+  when the box is longer than time_tol and its start is excluded (both keep the boxes
+  along a line or area of contact -- parallel edges, coplanar sliding, a thick
+  dist_tol -- from multiplying), else along the dimension where F changes most.
+
+The search returns ``min(start, t_near)`` as soon as the first box's start reaches
+``t_near - time_tol``, and inf when no box is left. Why this is never late: every
+point of the domain where the exact F is within dist_tol lies in a box that is never
+dropped, and every box that starts earlier than the one taken was dropped or split
+(it is the heap's minimum), so no such point exists before the taken box's start.
+Excluding needs dist_tol + delta and certifying allows dist_tol + 2 delta, so a small
+enough box is always dropped or certified, and the search ends.
+
+Rounding bound (per axis). Let m be the largest |coordinate| on that axis over the 8
+input points, u = 2^-53 the unit roundoff, and fl(a o b) = (a o b)(1 + e), |e| <= u.
+t, u, v are floats in [0, 1] (the parameter u is written w below). F is computed in
+exactly this order (``_f_axis``):
+
+1. d = fl(x_t1 - x_t0):          |error| <= u |x_t1 - x_t0| <= 2 u m;  |d| <= 2 m (1 + u)
+2. p = fl(t * d):                |error vs t (x_t1 - x_t0)| <= 2 u m + u |t d| <= 4.01 u m
+3. x = fl(x_t0 + p):             the exact x(t) is a convex combination, |x(t)| <= m;
+                                 |error| <= 4.01 u m + u (m + 4.01 u m) <= 5.01 u m
+4. D = fl(x_a - x_b):            |exact| <= 2 m;  |error| <= 2 (5.01 u m) + u (2.01 m) <= 12.1 u m
+5. P = fl(w * D), w in [0, 1]:   |error| <= 12.1 u m + u (2.01 m) <= 14.2 u m;  |P| <= 2.01 m
+6. fl(fl(D0 -+ P1) - P2):        first |error| <= 12.1 + 14.2 + 4.02 = 30.4 u m (|sum| <= 4.02 m),
+                                 then <= 30.4 + 14.2 + 6.05 = 50.7 u m (|sum| <= 6.05 m)
+
+(vertex-face boxes may have corners with u + v up to 2; each term above already
+allows |w| <= 1). So every computed value is within 51 u m of the exact one. We use
+delta = 128 u m + 2^-1060 per axis: 2.5 times the bound (the O(u^2) terms dropped
+above are far below the slack), plus an absolute term for gradual underflow with
+tiny coordinates. A fused multiply-add only removes a rounding, so the bound holds
+with or without contraction. Never compile this module with fastmath: it allows
+reassociation, which breaks the derivation. Inputs must be finite and well below
+1e150 (the public wrappers check both).
+
+Normal direction: for any float vector n, the computed
+fl(fl(fl(n0 F0) + fl(n1 F1)) + fl(n2 F2)) of computed F values is within
+gamma_3 sum |n_i| |F_i| <= 3.01 u sum |n_i| 6.06 m_i (rounding of the dot product)
+plus sum |n_i| 50.7 u m_i (of the F values), i.e. within sum |n_i| 69 u m_i, of the
+exact n . F; and where the exact F is within dist_tol on every axis,
+|n . F| <= sum |n_i| dist_tol. The bound used, fl(sum |n_i| (dist_tol + delta_i))
+times (1 + 2^-50) plus 2^-1060, covers both (its own rounding is at most 6 u
+relative). n is computed once per box, so the 8 corners use the same n; an overflowed
+n gives inf or nan comparisons, which never exclude.
+
+Domain: the certified point of a vertex-face box satisfies fl(u_c + v_c) <= 1, so
+u_c + v_c <= 1 + 2^-53; moving it into the triangle changes F by at most 4 u m,
+covered by the slack between 2 delta + 51 u m and 3 delta.
 """
 import numpy as np
 from numba import njit, prange
@@ -47,46 +104,287 @@ from numba import njit, prange
 VERTEX_FACE = 0
 EDGE_EDGE = 1
 
-_EPS = 2.0 ** -53
-#: rounding bound per axis, as a multiple of eps * max |coordinate| (derivation above)
+_UNIT_ROUNDOFF = 2.0 ** -53
+#: rounding bound per axis as a multiple of unit roundoff * max |coordinate| (derivation above)
 ROUNDING_FACTOR = 128.0
-#: box checks per query before giving a conservative answer
+#: absolute part of the rounding bound (gradual underflow of tiny coordinates)
+_UNDERFLOW = 2.0 ** -1060
+#: box checks per query before giving the conservative answer
 MAX_CHECKS = 50_000
-#: live boxes per query before giving a conservative answer
-HEAP_SIZE = 2048
-#: boxes narrower than this (in t, u or v) are not split further
+#: live boxes per query before giving the conservative answer
+HEAP_SIZE = 1024
+#: boxes this narrow (in t, u or v) are not split further along that dimension
 _MIN_WIDTH = 2.0 ** -60
+#: coordinates must stay below this (no overflow in F or in the normal tests)
+MAX_COORDINATE = 1e150
+
+# A box is a heap row: t_lo, t_hi, u_lo, u_hi, v_lo, v_hi, depth. Corner c of a box
+# has t = t_hi if bit 0 of c is set (else t_lo), u = u_hi if bit 1, v = v_hi if bit 2.
+_ROW = 7
 
 
-# --- F at the corners of a box ------------------------------------------------------------
+# --- F and its rounding bound -----------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def _f_value(kind, x_t0, x_t1, t, u, v, axis):
-    """One coordinate of F at (t, u, v), evaluated in the order the bound assumes."""
-    p0 = x_t0[0, axis] + t * (x_t1[0, axis] - x_t0[0, axis])
-    p1 = x_t0[1, axis] + t * (x_t1[1, axis] - x_t0[1, axis])
-    p2 = x_t0[2, axis] + t * (x_t1[2, axis] - x_t0[2, axis])
-    p3 = x_t0[3, axis] + t * (x_t1[3, axis] - x_t0[3, axis])
-    if kind == VERTEX_FACE:  # p0 = v, p1 = f0, p2 = f1, p3 = f2
+def _lerp(x_t0, x_t1, row, axis, t):
+    """Coordinate axis of input point row at time t (length units)."""
+    return x_t0[row, axis] + t * (x_t1[row, axis] - x_t0[row, axis])
+
+
+@njit(cache=True, inline="always")
+def _f_axis(kind, x_t0, x_t1, t, u, v, axis):
+    """One coordinate of F at (t, u, v), in exactly the order the rounding bound assumes.
+
+    x_t0, x_t1: float64 (4, 3); t, u, v: floats in [0, 1]; returns length units.
+    """
+    p0 = _lerp(x_t0, x_t1, 0, axis, t)
+    p1 = _lerp(x_t0, x_t1, 1, axis, t)
+    p2 = _lerp(x_t0, x_t1, 2, axis, t)
+    p3 = _lerp(x_t0, x_t1, 3, axis, t)
+    if kind == VERTEX_FACE:  # v_t, f0_t, f1_t, f2_t
         return ((p0 - p1) - u * (p2 - p1)) - v * (p3 - p1)
-    # p0 = ea0, p1 = ea1, p2 = eb0, p3 = eb1
+    # ea0_t, ea1_t, eb0_t, eb1_t
     return ((p0 - p2) + u * (p1 - p0)) - v * (p3 - p2)
 
 
+@njit(cache=True, inline="always")
+def _rounding_bound(x_t0, x_t1):
+    """delta per axis (a 3-tuple, length units): bounds |computed F - exact F| (module doc)."""
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    for r in range(4):
+        m0 = max(m0, abs(x_t0[r, 0]), abs(x_t1[r, 0]))
+        m1 = max(m1, abs(x_t0[r, 1]), abs(x_t1[r, 1]))
+        m2 = max(m2, abs(x_t0[r, 2]), abs(x_t1[r, 2]))
+    scale = ROUNDING_FACTOR * _UNIT_ROUNDOFF
+    return (scale * m0 + _UNDERFLOW, scale * m1 + _UNDERFLOW, scale * m2 + _UNDERFLOW)
+
+
+@njit(cache=True, inline="always")
+def _root_excluded(kind, x_t0, x_t1, tol_out):
+    """The whole domain [0, 1]^3 is excluded on some axis (decided without allocating)."""
+    for axis in range(3):
+        lo = np.inf
+        hi = -np.inf
+        for c in range(8):
+            value = _f_axis(kind, x_t0, x_t1, float(c & 1), float((c >> 1) & 1),
+                            float((c >> 2) & 1), axis)
+            lo = min(lo, value)
+            hi = max(hi, value)
+        if lo > tol_out[axis] or hi < -tol_out[axis]:
+            return True
+    return False
+
+
+# --- exclusion --------------------------------------------------------------------------------
+
 @njit(cache=True)
 def _box_corners(kind, x_t0, x_t1, box, corners):
-    """corners (8, 3) = F at the 8 corners of box (t_lo, t_hi, u_lo, u_hi, v_lo, v_hi)."""
+    """Fill corners (8, 3) with F at the 8 corners of box (a heap row)."""
     for c in range(8):
-        t = box[0] if (c & 1) == 0 else box[1]
-        u = box[2] if (c & 2) == 0 else box[3]
-        v = box[4] if (c & 4) == 0 else box[5]
+        t = box[1] if c & 1 else box[0]
+        u = box[3] if c & 2 else box[2]
+        v = box[5] if c & 4 else box[4]
         for axis in range(3):
-            corners[c, axis] = _f_value(kind, x_t0, x_t1, t, u, v, axis)
+            corners[c, axis] = _f_axis(kind, x_t0, x_t1, t, u, v, axis)
 
+
+@njit(cache=True)
+def _excluded(corners, tol_out):
+    """On some axis all the values (rows of corners) lie beyond tol_out on the same side."""
+    for axis in range(3):
+        lo = np.inf
+        hi = -np.inf
+        for c in range(corners.shape[0]):
+            lo = min(lo, corners[c, axis])
+            hi = max(hi, corners[c, axis])
+        if lo > tol_out[axis] or hi < -tol_out[axis]:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _edge_vector(kind, x_t0, x_t1, t, which, axis):
+    """Coordinate axis at time t of edge which (0, 1): f1 - f0 and f2 - f0 for
+    vertex-face, ea1 - ea0 and eb1 - eb0 for edge-edge."""
+    if kind == VERTEX_FACE:
+        return _lerp(x_t0, x_t1, 2 + which, axis, t) - _lerp(x_t0, x_t1, 1, axis, t)
+    return _lerp(x_t0, x_t1, 2 * which + 1, axis, t) - _lerp(x_t0, x_t1, 2 * which, axis, t)
+
+
+@njit(cache=True)
+def _plane_normal(kind, x_t0, x_t1, t):
+    """(3-tuple) cross product of the two edge vectors at time t: the face normal for
+    vertex-face, ea x eb for edge-edge. Any vector would do for rigour; this one
+    separates nearly coplanar configurations best."""
+    a0 = _edge_vector(kind, x_t0, x_t1, t, 0, 0)
+    a1 = _edge_vector(kind, x_t0, x_t1, t, 0, 1)
+    a2 = _edge_vector(kind, x_t0, x_t1, t, 0, 2)
+    b0 = _edge_vector(kind, x_t0, x_t1, t, 1, 0)
+    b1 = _edge_vector(kind, x_t0, x_t1, t, 1, 1)
+    b2 = _edge_vector(kind, x_t0, x_t1, t, 1, 2)
+    return (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+
+
+@njit(cache=True)
+def _normal_excluded(kind, x_t0, x_t1, box, corners, delta, dist_tol):
+    """n . F keeps a sign beyond its rounding bound at all the values (rows of corners)
+    of F bounding the box (module docstring)."""
+    n = _plane_normal(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]))
+    bound = (abs(n[0]) * (dist_tol + delta[0]) + abs(n[1]) * (dist_tol + delta[1])
+             + abs(n[2]) * (dist_tol + delta[2])) * (1.0 + 2.0 ** -50) + _UNDERFLOW
+    lo = np.inf
+    hi = -np.inf
+    for c in range(corners.shape[0]):
+        g = n[0] * corners[c, 0] + n[1] * corners[c, 1] + n[2] * corners[c, 2]
+        lo = min(lo, g)
+        hi = max(hi, g)
+    return lo > bound or hi < -bound
+
+
+@njit(cache=True)
+def _clipped_excluded(kind, x_t0, x_t1, box, delta, dist_tol, tol_out, values):
+    """For a vertex-face box that straddles the triangle's edge u + v = 1: the exclusion
+    tests over the part of the box inside the triangle only.
+
+    For fixed t, the vertex-face F is affine in (u, v), so over (time interval) x
+    (polygon) it lies within the hull of its values at the polygon's vertices at both
+    times. The polygon is the box's (u, v) rectangle cut by u + v <= 1, enlarged by
+    2^-52 along the cut so that rounding 1 - u can only make it larger.
+    values: (10, 3) scratch.
+    """
+    u_lo, u_hi, v_lo, v_hi = box[2], box[3], box[4], box[5]
+    u_cut = min(u_hi, (1.0 - v_lo) + 2.0 ** -52)  # on the edge, at v = v_lo
+    v_cut = min(v_hi, (1.0 - u_lo) + 2.0 ** -52)  # on the edge, at u = u_lo
+    polygon = ((u_lo, v_lo), (u_cut, v_lo), (u_lo, v_cut),
+               (u_hi, min(v_hi, (1.0 - u_hi) + 2.0 ** -52)), (min(u_hi, (1.0 - v_hi) + 2.0 ** -52), v_hi))
+    k = 0
+    for face in range(2):
+        for corner in polygon:
+            u = max(corner[0], u_lo)
+            v = max(corner[1], v_lo)
+            for axis in range(3):
+                values[k, axis] = _f_axis(kind, x_t0, x_t1, box[face], u, v, axis)
+            k += 1
+    return _excluded(values, tol_out) or _normal_excluded(kind, x_t0, x_t1, box, values, delta, dist_tol)
+
+
+# --- certification of a near contact ----------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _det3(g, k, r):
+    """Determinant of the 3 x 3 matrix g (4, 3 scratch rows 0-2) with column k replaced by r
+    (k = -1: none)."""
+    m00 = r[0] if k == 0 else g[0, 0]
+    m10 = r[1] if k == 0 else g[1, 0]
+    m20 = r[2] if k == 0 else g[2, 0]
+    m01 = r[0] if k == 1 else g[0, 1]
+    m11 = r[1] if k == 1 else g[1, 1]
+    m21 = r[2] if k == 1 else g[2, 1]
+    m02 = r[0] if k == 2 else g[0, 2]
+    m12 = r[1] if k == 2 else g[1, 2]
+    m22 = r[2] if k == 2 else g[2, 2]
+    return (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+            + m02 * (m10 * m21 - m11 * m20))
+
+
+@njit(cache=True)
+def _newton_step(corners, face, scratch):
+    """Regularised Gauss-Newton step toward F = 0 from the box's centre (face = -1), or
+    from the centre of its start (face = 0) or end (face = 1) time face with t kept
+    there, in box units (3-tuple, each in [-1/2, 1/2] once clamped).
+
+    F is multilinear, so its value at such a centre is the mean of the corner values
+    there, and its change across the box along a dimension is the mean change over
+    the corner pairs differing in that dimension. Solves (A^T A + lambda I) x = -A^T f,
+    which also copes with the rank-deficient A of parallel or coplanar motions. Only a
+    guess: the caller verifies the point it leads to.
+    """
+    f = scratch[3]
+    a = scratch[4:7]  # a[d] = change of F across the box along dimension d
+    f[:] = 0.0
+    a[:] = 0.0
+    weight = 0.125 if face < 0 else 0.25
+    for c in range(8):
+        if face >= 0 and (c & 1) != face:
+            continue
+        for axis in range(3):
+            value = corners[c, axis]
+            f[axis] += weight * value
+            for d in range(0 if face < 0 else 1, 3):
+                a[d, axis] += 2.0 * weight * value if c & (1 << d) else -2.0 * weight * value
+    g = scratch[0:3]
+    r = scratch[7]
+    for i in range(3):
+        for j in range(3):
+            g[i, j] = a[i, 0] * a[j, 0] + a[i, 1] * a[j, 1] + a[i, 2] * a[j, 2]
+        r[i] = -(a[i, 0] * f[0] + a[i, 1] * f[1] + a[i, 2] * f[2])
+    trace = g[0, 0] + g[1, 1] + g[2, 2]
+    if not 0.0 < trace < np.inf:
+        return (0.0, 0.0, 0.0)  # F does not change over the box (or overflowed)
+    for i in range(3):  # scale to trace 1 (the solution does not change), add lambda
+        r[i] /= trace
+        for j in range(3):
+            g[i, j] /= trace
+        g[i, i] += 1e-9
+    det = _det3(g, -1, r)
+    if not det > 0.0:  # g is symmetric positive definite: only rounding can get here
+        return (0.0, 0.0, 0.0)
+    return (_det3(g, 0, r) / det, _det3(g, 1, r) / det, _det3(g, 2, r) / det)
+
+
+@njit(cache=True, inline="always")
+def _in_box(box, d, step):
+    """Centre of the box along dimension d moved by step box widths, kept in the box."""
+    lo = box[2 * d]
+    hi = box[2 * d + 1]
+    step = min(max(step, -0.5), 0.5) if np.isfinite(step) else 0.0
+    return min(max(0.5 * (lo + hi) + step * (hi - lo), lo), hi)
+
+
+@njit(cache=True)
+def _near_contact_at(kind, x_t0, x_t1, box, corners, face, tol_in, scratch):
+    """Time t_c of the candidate point from _newton_step(face) if F there, computed
+    afresh, is within tol_in on every axis and the point is in the domain; else -1.0."""
+    x = _newton_step(corners, face, scratch)
+    t = _in_box(box, 0, x[0]) if face < 0 else box[face]
+    u = _in_box(box, 1, x[1])
+    v = _in_box(box, 2, x[2])
+    if kind == VERTEX_FACE and u + v > 1.0:  # pull it back into the triangle
+        excess = 0.5 * (u + v - 1.0)
+        u = max(u - excess, box[2])
+        v = max(v - excess, box[4])
+        if u + v > 1.0:
+            return -1.0
+    for axis in range(3):
+        if abs(_f_axis(kind, x_t0, x_t1, t, u, v, axis)) > tol_in[axis]:
+            return -1.0
+    return t
+
+
+@njit(cache=True)
+def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
+    """Earliest time of the box found to hold a certified near contact, -1.0 if none.
+
+    Tries, in order: the box's start time (which ends the search at once), a point
+    anywhere in the box, and for a box at most time_tol long its end time.
+    """
+    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, 0, tol_in, scratch)
+    if t_c >= 0.0:
+        return t_c
+    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, -1, tol_in, scratch)
+    if t_c < 0.0 and box[1] - box[0] <= time_tol:
+        t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, 1, tol_in, scratch)
+    return t_c
+
+
+# --- splitting --------------------------------------------------------------------------------
 
 @njit(cache=True)
 def _split_dimension(corners, box):
-    """Dimension (0 t, 1 u, 2 v) whose change moves F the most, among the splittable ones."""
+    """Dimension (0 t, 1 u, 2 v) along which F changes the most, among those still
+    wider than _MIN_WIDTH; -1 if none can be split."""
     best = -1
     best_change = -1.0
     for dim in range(3):
@@ -106,239 +404,243 @@ def _split_dimension(corners, box):
 
 
 @njit(cache=True)
-def _excluded(corners, tol):
-    """Some axis of F keeps a sign over the box, beyond the tolerance: no contact in it."""
+def _start_excluded(corners, tol_out):
+    """At the box's start time (the 4 even corners) some axis is beyond tol_out."""
     for axis in range(3):
-        lo = corners[:, axis].min()
-        hi = corners[:, axis].max()
-        if lo > tol[axis] or hi < -tol[axis]:
+        lo = min(corners[0, axis], corners[2, axis], corners[4, axis], corners[6, axis])
+        hi = max(corners[0, axis], corners[2, axis], corners[4, axis], corners[6, axis])
+        if lo > tol_out[axis] or hi < -tol_out[axis]:
             return True
     return False
 
 
 @njit(cache=True)
-def _small_in_space(corners, tol):
-    """At every time of the box, F varies by at most 2 tol over its (u, v) range.
-
-    Checked on the two time faces of the box (corners with t = t_lo, then t =
-    t_hi); F is affine in t, so intermediate times vary no more than these.
-    """
-    for face in range(2):
-        for axis in range(3):
-            lo = np.inf
-            hi = -np.inf
-            for c in range(face, 8, 2):
-                lo = min(lo, corners[c, axis])
-                hi = max(hi, corners[c, axis])
-            if hi - lo > 2.0 * tol[axis]:
-                return False
-    return True
-
-
-@njit(cache=True)
-def _time_split_excludes_a_half(kind, x_t0, x_t1, box, corners, tol, mid_face):
-    """Halving the box in time drops one half at once.
-
-    Preferring such splits keeps boxes that straddle a contact time from
-    multiplying along (u, v) when the contact set is a line or an area
-    (parallel edges, coplanar sliding), which would otherwise exhaust the search.
-    Only the 4 corners at the middle time are new; the halves share the box's
-    own corners at t_lo (even indices of ``corners``) and t_hi (odd ones).
-    """
+def _time_split_drops_a_half(kind, x_t0, x_t1, box, corners, tol_out):
+    """Halving the box in time would exclude one of the halves at once (a heuristic
+    for choosing the split; the halves are tested properly when taken)."""
     if box[1] - box[0] <= _MIN_WIDTH:
         return False
     mid = 0.5 * (box[0] + box[1])
-    for c in range(4):
-        u = box[2] if (c & 1) == 0 else box[3]
-        v = box[4] if (c & 2) == 0 else box[5]
-        for axis in range(3):
-            mid_face[c, axis] = _f_value(kind, x_t0, x_t1, mid, u, v, axis)
-    for side in range(2):  # 0: [t_lo, mid] with corners 0, 2, 4, 6; 1: [mid, t_hi] with 1, 3, 5, 7
-        for axis in range(3):
-            lo = mid_face[:, axis].min()
-            hi = mid_face[:, axis].max()
+    for axis in range(3):
+        m0 = _f_axis(kind, x_t0, x_t1, mid, box[2], box[4], axis)
+        m1 = _f_axis(kind, x_t0, x_t1, mid, box[3], box[4], axis)
+        m2 = _f_axis(kind, x_t0, x_t1, mid, box[2], box[5], axis)
+        m3 = _f_axis(kind, x_t0, x_t1, mid, box[3], box[5], axis)
+        for side in range(2):  # 0: [t_lo, mid] with even corners, 1: [mid, t_hi] with odd
+            lo = min(m0, m1, m2, m3)
+            hi = max(m0, m1, m2, m3)
             for c in range(side, 8, 2):
                 lo = min(lo, corners[c, axis])
                 hi = max(hi, corners[c, axis])
-            if lo > tol[axis] or hi < -tol[axis]:
+            if lo > tol_out[axis] or hi < -tol_out[axis]:
                 return True
     return False
 
 
-# --- a min-heap of boxes keyed by (t_lo, -depth) --------------------------------------------
+# --- a min-heap of boxes keyed by (t_lo, -depth) ----------------------------------------------
 
 @njit(cache=True, inline="always")
 def _before(heap, i, j):
+    """Box i comes before box j: it starts earlier, or as early and is deeper."""
     return heap[i, 0] < heap[j, 0] or (heap[i, 0] == heap[j, 0] and heap[i, 6] > heap[j, 6])
 
 
+@njit(cache=True, inline="always")
+def _swap(heap, i, j):
+    for c in range(_ROW):
+        heap[i, c], heap[j, c] = heap[j, c], heap[i, c]
+
+
 @njit(cache=True)
-def _heap_push(heap, n, box, depth):
-    heap[n, :6] = box
-    heap[n, 6] = depth
+def _heap_push_half(heap, n, box, dim, upper):
+    """Push the lower (upper=False) or upper half of box along dim; returns the new size."""
+    for c in range(_ROW):
+        heap[n, c] = box[c]
+    heap[n, 2 * dim + (0 if upper else 1)] = 0.5 * (box[2 * dim] + box[2 * dim + 1])
+    heap[n, 6] = box[6] + 1.0
     i = n
     while i > 0:
         parent = (i - 1) // 2
         if not _before(heap, i, parent):
             break
-        for c in range(7):
-            heap[i, c], heap[parent, c] = heap[parent, c], heap[i, c]
+        _swap(heap, i, parent)
         i = parent
     return n + 1
 
 
 @njit(cache=True)
 def _heap_pop(heap, n, out):
-    """Remove the first box into out (7,); returns the new size."""
-    out[:] = heap[0]
+    """Move the first box into out (7,); returns the new size."""
+    for c in range(_ROW):
+        out[c] = heap[0, c]
     n -= 1
-    heap[0] = heap[n]
+    for c in range(_ROW):
+        heap[0, c] = heap[n, c]
     i = 0
     while True:
-        left = 2 * i + 1
-        if left >= n:
+        child = 2 * i + 1
+        if child >= n:
             break
-        child = left
-        if left + 1 < n and _before(heap, left + 1, left):
-            child = left + 1
+        if child + 1 < n and _before(heap, child + 1, child):
+            child += 1
         if not _before(heap, child, i):
             break
-        for c in range(7):
-            heap[i, c], heap[child, c] = heap[child, c], heap[i, c]
+        _swap(heap, i, child)
         i = child
     return n
 
 
-@njit(cache=True, inline="always")
-def _tolerances(x_t0, x_t1, dist_tol):
-    """Per axis (a 3-tuple): the rounding bound of F plus dist_tol (see the module docstring)."""
-    m0 = 0.0
-    m1 = 0.0
-    m2 = 0.0
-    for r in range(4):
-        m0 = max(m0, abs(x_t0[r, 0]), abs(x_t1[r, 0]))
-        m1 = max(m1, abs(x_t0[r, 1]), abs(x_t1[r, 1]))
-        m2 = max(m2, abs(x_t0[r, 2]), abs(x_t1[r, 2]))
-    scale = ROUNDING_FACTOR * _EPS
-    return (scale * m0 + dist_tol, scale * m1 + dist_tol, scale * m2 + dist_tol)
-
-
-@njit(cache=True, inline="always")
-def _root_excluded(kind, x_t0, x_t1, tol):
-    """_excluded for the whole domain [0, 1]^3, without storing corners."""
-    for axis in range(3):
-        lo = np.inf
-        hi = -np.inf
-        for c in range(8):
-            value = _f_value(kind, x_t0, x_t1, float(c & 1), float((c >> 1) & 1), float((c >> 2) & 1), axis)
-            lo = min(lo, value)
-            hi = max(hi, value)
-        if lo > tol[axis] or hi < -tol[axis]:
-            return True
-    return False
-
-
-# --- the search --------------------------------------------------------------------------
+# --- the search -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
-    tol = _tolerances(x_t0, x_t1, dist_tol)
-    if _root_excluded(kind, x_t0, x_t1, tol):
-        return np.inf  # the common case, decided without allocating anything
+def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in):
+    """Best-first box search (module docstring); returns the conservative toi or inf."""
+    heap = np.empty((HEAP_SIZE, _ROW))
     corners = np.empty((8, 3))
-    root = np.array([0.0, 1.0, 0.0, 1.0, 0.0, 1.0])
-    heap = np.empty((HEAP_SIZE, 7))
-    mid_face = np.empty((4, 3))
-    half = np.empty(6)
-    box = np.empty(7)
-    n = _heap_push(heap, 0, root, 0.0)
+    scratch = np.empty((8, 3))
+    clipped = np.empty((10, 3))
+    box = np.empty(_ROW)
+    heap[0, :] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0)
+    n = 1
     checks = 0
+    t_near = np.inf  # earliest certified near-contact time so far
     while n > 0:
         n = _heap_pop(heap, n, box)
+        if box[0] >= t_near - time_tol:
+            return min(box[0], t_near)
         checks += 1
         if checks > MAX_CHECKS:
-            return box[0]
+            return box[0]  # the earliest box still alive
         if kind == VERTEX_FACE and box[2] + box[4] > 1.0:
-            continue  # entirely outside the triangle u + v <= 1
+            continue  # wholly outside the triangle u + v <= 1
         _box_corners(kind, x_t0, x_t1, box, corners)
-        if _excluded(corners, tol):
+        if _excluded(corners, tol_out) or _normal_excluded(kind, x_t0, x_t1, box, corners,
+                                                           delta, dist_tol):
             continue
-        small = _small_in_space(corners, tol)
-        if small and box[1] - box[0] <= time_tol:
-            return box[0]
-        if small or _time_split_excludes_a_half(kind, x_t0, x_t1, box, corners, tol, mid_face):
+        if kind == VERTEX_FACE and box[3] + box[5] > 1.0 and _clipped_excluded(
+                kind, x_t0, x_t1, box, delta, dist_tol, tol_out, clipped):
+            continue
+        t_c = _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch)
+        if t_c >= 0.0:
+            t_near = min(t_near, t_c)
+            if box[0] >= t_near - time_tol:
+                return box[0]
+        if (_time_split_drops_a_half(kind, x_t0, x_t1, box, corners, tol_out)
+                or (box[1] - box[0] > max(time_tol, _MIN_WIDTH) and _start_excluded(corners, tol_out))):
             dim = 0
         else:
             dim = _split_dimension(corners, box)
-        if dim < 0 or box[2 * dim + 1] - box[2 * dim] <= _MIN_WIDTH:
-            return box[0]  # nothing left to split: conservative
-        if n + 2 > HEAP_SIZE:
-            return box[0]  # the earliest live box: conservative
-        mid = 0.5 * (box[2 * dim] + box[2 * dim + 1])
-        half[:] = box[:6]
-        half[2 * dim + 1] = mid
-        n = _heap_push(heap, n, half, box[6] + 1.0)
-        half[2 * dim + 1] = box[2 * dim + 1]
-        half[2 * dim] = mid
-        n = _heap_push(heap, n, half, box[6] + 1.0)
+        if dim < 0 or n + 2 > HEAP_SIZE:
+            return box[0]  # cannot split or store more: the earliest live box's start
+        n = _heap_push_half(heap, n, box, dim, False)
+        n = _heap_push_half(heap, n, box, dim, True)
     return np.inf
 
 
 @njit(cache=True)
-def vertex_face_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
-    """Earliest contact time of a moving point and triangle (conservative), inf if none.
+def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
+    """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE)."""
+    delta = _rounding_bound(x_t0, x_t1)
+    tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
+    if _root_excluded(kind, x_t0, x_t1, tol_out):
+        return np.inf  # the common case: no allocation at all
+    tol_in = (tol_out[0] + delta[0], tol_out[1] + delta[1], tol_out[2] + delta[2])
+    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in)
 
-    x_t0, x_t1: float64 (4, 3), rows v, f0, f1, f2 at t = 0 and t = 1.
-    time_tol: in units of the step; dist_tol: length units.
+
+@njit(cache=True)
+def vertex_face_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
+    """Conservative earliest contact time of a moving point and triangle, inf if none.
+
+    x_t0, x_t1: float64 (4, 3) C-contiguous, rows v, f0, f1, f2 at t = 0 and t = 1
+    (length units, finite, |x| < MAX_COORDINATE; not checked here). time_tol: fraction
+    of the step (>= 0); dist_tol: length units (>= 0), per axis. Returns a float in
+    [0, 1] or inf, with the guarantees of the module docstring. Never raises.
     """
     return _toi(VERTEX_FACE, x_t0, x_t1, time_tol, dist_tol)
 
 
 @njit(cache=True)
 def edge_edge_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
-    """Earliest contact time of two moving segments (conservative), inf if none.
+    """Conservative earliest contact time of two moving segments, inf if none.
 
-    x_t0, x_t1: float64 (4, 3), rows ea0, ea1, eb0, eb1 at t = 0 and t = 1.
+    x_t0, x_t1: float64 (4, 3) C-contiguous, rows ea0, ea1, eb0, eb1 at t = 0 and
+    t = 1. Otherwise as vertex_face_toi_kernel.
     """
     return _toi(EDGE_EDGE, x_t0, x_t1, time_tol, dist_tol)
 
 
-# --- batched public API ------------------------------------------------------------------
+# --- batched public API -----------------------------------------------------------------------
 
 @njit(cache=True, parallel=True)
 def _toi_batch(kind, x_t0, x_t1, time_tol, dist_tol):
+    """float64 (n,) times of the n queries x_t0[i], x_t1[i] (each (4, 3))."""
     out = np.empty(x_t0.shape[0])
     for i in prange(x_t0.shape[0]):
         out[i] = _toi(kind, x_t0[i], x_t1[i], time_tol, dist_tol)
     return out
 
 
+def _as_queries(x, name):
+    """x as a C-contiguous float64 (n, 4, 3) array (a single (4, 3) query becomes n = 1)."""
+    try:
+        array = np.asarray(x)
+    except (TypeError, ValueError) as error:  # ragged nested lists and the like
+        raise ValueError(f"{name}: expected an array of shape (n, 4, 3): {error}") from None
+    if array.dtype == np.bool_ or not (np.issubdtype(array.dtype, np.floating)
+                                       or np.issubdtype(array.dtype, np.integer)):
+        raise ValueError(f"{name}: expected real numbers, got dtype {array.dtype}")
+    if array.shape == (4, 3):
+        array = array[None]
+    if array.ndim != 3 or array.shape[1:] != (4, 3):
+        raise ValueError(f"{name}: expected shape (n, 4, 3) or (4, 3), got {array.shape}")
+    array = np.ascontiguousarray(array, dtype=np.float64)
+    if not np.isfinite(array).all():
+        raise ValueError(f"{name}: coordinates must be finite")
+    if array.size and np.abs(array).max() >= MAX_COORDINATE:
+        raise ValueError(f"{name}: coordinates must be below {MAX_COORDINATE:g} in magnitude")
+    return array
+
+
 def _batch(kind, x_t0, x_t1, time_tol, dist_tol):
-    x_t0 = np.ascontiguousarray(x_t0, dtype=np.float64)
-    x_t1 = np.ascontiguousarray(x_t1, dtype=np.float64)
-    if x_t0.shape == (4, 3):
-        x_t0, x_t1 = x_t0[None], x_t1.reshape(1, 4, 3) if x_t1.shape == (4, 3) else x_t1
-    if x_t0.ndim != 3 or x_t0.shape[1:] != (4, 3) or x_t1.shape != x_t0.shape:
-        raise ValueError(f"expected two float arrays of shape (n, 4, 3), got {x_t0.shape} and {x_t1.shape}")
-    if not (np.isfinite(x_t0).all() and np.isfinite(x_t1).all()):
-        raise ValueError("coordinates must be finite")
-    if not time_tol > 0 or not dist_tol >= 0:
-        raise ValueError("time_tol must be > 0 and dist_tol >= 0")
-    return _toi_batch(kind, x_t0, x_t1, float(time_tol), float(dist_tol))
+    """Validate and convert the inputs, then run the parallel kernel."""
+    x_t0 = _as_queries(x_t0, "x_t0")
+    x_t1 = _as_queries(x_t1, "x_t1")
+    if x_t0.shape != x_t1.shape:
+        raise ValueError(f"x_t0 and x_t1 differ in shape: {x_t0.shape} and {x_t1.shape}")
+    time_tol = float(time_tol)
+    dist_tol = float(dist_tol)
+    if not 0.0 <= time_tol < np.inf:
+        raise ValueError(f"time_tol must be finite and >= 0, got {time_tol}")
+    if not 0.0 <= dist_tol < np.inf:
+        raise ValueError(f"dist_tol must be finite and >= 0, got {dist_tol}")
+    return _toi_batch(kind, x_t0, x_t1, time_tol, dist_tol)
 
 
 def vertex_face_toi(x_t0, x_t1, time_tol=1e-6, dist_tol=0.0):
-    """Earliest times of contact of moving points and triangles (SPEC §5).
+    """Conservative earliest times of contact of moving points and triangles (SPEC §5).
 
-    x_t0, x_t1: float64 (n, 4, 3) (or one (4, 3) query): rows v, f0, f1, f2 at
-    t = 0 and t = 1; every vertex moves linearly in between. Returns float64
-    (n,): for each query a time in [0, 1] no later than the first contact and at
-    most ``time_tol`` earlier, or inf when the point never comes within
-    ``dist_tol`` (length units, per axis) of the closed triangle.
+    x_t0, x_t1: array-like (n, 4, 3), or a single (4, 3) query (then n = 1), converted
+    to C-contiguous float64: rows v, f0, f1, f2 at t = 0 and t = 1 (length units);
+    every vertex moves linearly in between. time_tol: fraction of the step (>= 0);
+    dist_tol: length units (>= 0), applied per axis.
+
+    Returns float64 (n,): for each query a time in [0, 1] never later than the first
+    time the point is within dist_tol of the closed triangle (touching counts), and
+    at most time_tol before a time at which it is within dist_tol plus a certified
+    rounding bound (~1.4e-14 x the largest coordinate) of it; inf when it never
+    comes within dist_tol. Raises ValueError for bad shapes, non-numeric,
+    non-finite or huge (>= 1e150) input, or bad tolerances.
     """
     return _batch(VERTEX_FACE, x_t0, x_t1, time_tol, dist_tol)
 
 
 def edge_edge_toi(x_t0, x_t1, time_tol=1e-6, dist_tol=0.0):
-    """Earliest times of contact of moving segments: rows ea0, ea1, eb0, eb1 (see vertex_face_toi)."""
+    """Conservative earliest times of contact of moving segments (SPEC §5).
+
+    x_t0, x_t1: array-like (n, 4, 3), or a single (4, 3) query: rows ea0, ea1, eb0,
+    eb1 at t = 0 and t = 1, for the closed segments ea0 ea1 and eb0 eb1 (length
+    units). Returns float64 (n,) times in [0, 1] or inf, with the guarantees and
+    errors of vertex_face_toi.
+    """
     return _batch(EDGE_EDGE, x_t0, x_t1, time_tol, dist_tol)

@@ -70,8 +70,9 @@ def intervals_from_hits(hits, times):
     times float64 (T,) analysed frame times.
     Returns (columns, where): contact columns sorted per SPEC §4 with one row
     per maximal run of consecutive frames of one object pair (points NaN, for
-    the caller to fill), and where = (step int64 (E,), u float64 (E,)): the
-    contact's first moment as frame/step index and fraction of the step.
+    the caller to fill), and where = (step int64 (E,), u float64 (E,),
+    from_hit bool (E,)): the contact's first moment as frame/step index and
+    fraction of the step, and whether (tri_a, tri_b) came from a frame hit.
     """
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, 6)
     rows = []
@@ -81,15 +82,16 @@ def intervals_from_hits(hits, times):
         for s, e in zip(starts, ends):
             f0, f1 = group[s, 0], group[e, 0]
             rows.append((a, b, times[f0], times[f1], f0, f1, KIND_FRAME, group[s, 4], group[s, 5],
-                         np.nan, np.nan, np.nan, f0, 0.0))
+                         np.nan, np.nan, np.nan, f0, 0.0, True))
     return _finish(rows)
 
 
 def _finish(rows):
-    """Sort rows (contact columns + step, u) and split off the where-arrays."""
+    """Sort rows (contact columns + step, u, from_hit) and split off the where-arrays."""
     rows.sort(key=lambda r: (r[0], r[1], r[2]))
     columns = _to_columns([r[:12] for r in rows])
-    where = (np.array([r[12] for r in rows], dtype=np.int64), np.array([r[13] for r in rows], dtype=np.float64))
+    where = (np.array([r[12] for r in rows], dtype=np.int64), np.array([r[13] for r in rows], dtype=np.float64),
+             np.array([r[14] for r in rows], dtype=bool))
     return columns, where
 
 
@@ -147,7 +149,7 @@ def _interval_row(current, times):
     first, end, seen_at_frame = current
     a, b, begin, _, ta, tb, _, step, u = first
     return (a, b, begin, end, frame_of_time(times, begin), frame_of_time(times, end),
-            KIND_FRAME if seen_at_frame else KIND_SWEPT, ta, tb, np.nan, np.nan, np.nan, step, u)
+            KIND_FRAME if seen_at_frame else KIND_SWEPT, ta, tb, np.nan, np.nan, np.nan, step, u, first[6])
 
 
 def frame_of_time(times, t):

@@ -9,6 +9,8 @@ triangle pairs exactly (narrow.intersecting_triangles).
 Output rows (int64):
 - hits (H, 6): frame, object_a, object_b, number of intersecting triangle
   pairs, tri_a, tri_b (the lexicographically smallest intersecting pair).
+  With ``first_only`` a pair's search stops at its first intersecting
+  triangle pair: the count is then 1 and (tri_a, tri_b) that first pair.
 - pairs (P, 5): frame, object_a, object_b, tri_a, tri_b (only when collected).
 """
 import numpy as np
@@ -97,10 +99,11 @@ def _smallest_pair(tri, n):
 
 
 @njit(cache=True, nogil=True)
-def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect_pairs):
+def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect_pairs, first_only):
     """Discrete scan of frames [frame_start, frame_stop).
 
-    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,).
+    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,);
+    first_only must be False when collect_pairs is True.
     Returns (hits int64 (H, 6), pairs int64 (P, 5)); see module docstring.
     """
     n_objects = poses.shape[1]
@@ -133,7 +136,7 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
             tri, n_tri = intersecting_triangles(
                 leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                 ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
-                world, ps.world_start[a], ps.world_start[b], tri, 0)
+                world, ps.world_start[a], ps.world_start[b], tri, 0, first_only)
             if n_tri == 0:
                 continue
             tri_a, tri_b = _smallest_pair(tri, n_tri)

@@ -46,8 +46,9 @@ def append_row(buf, n, row):
 @njit(cache=True)
 def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
                            face_base_a, face_base_b, world, world_base_a, world_base_b,
-                           out, n_out):
-    """Append every intersecting triangle pair (tri_a, tri_b) of the leaf pairs.
+                           out, n_out, first_only):
+    """Append every intersecting triangle pair (tri_a, tri_b) of the leaf pairs
+    (only the first one found when ``first_only``).
 
     leaves int64 (>= n_leaves, 2): (leaf of A, leaf of B) node indices.
     prim_ids hold mesh-local face indices; face_base_* turn them into rows of
@@ -70,6 +71,8 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
                     row[0] = tri_a
                     row[1] = tri_b
                     out, n_out = append_row(out, n_out, row)
+                    if first_only:
+                        return out, n_out
     return out, n_out
 
 

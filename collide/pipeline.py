@@ -17,7 +17,7 @@ from ._version import __version__
 from .closest import contact_point
 from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, intervals_from_hits,
                        intervals_from_steps, sort_columns)
-from .discrete import ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
+from .discrete import ALL_PAIRS, ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
 from .errors import UsageError
 from .load import load_scene
 from .output import check_output_path, write_contacts
@@ -159,17 +159,34 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
 
 
 def _run_discrete(ps, poses, static, collect_pairs, workers, progress, scheduler=None):
-    """Frame hits (H, 6) and triangle pairs (P, 5) of all frames."""
+    """Frame hits (H, 6) and triangle pairs (P, 5) of all frames.
+
+    Without collect_pairs each object pair's search stops at its first
+    intersecting triangle pair (see smallest_pairs_at_frames for the reported pair).
+    """
     n_frames = poses.shape[0]
-    results = _run_chunks(scan_frames, (ps, poses, static), (SKIP_STATIC_PAIRS, collect_pairs),
+    first_only = not collect_pairs
+    results = _run_chunks(scan_frames, (ps, poses, static), (SKIP_STATIC_PAIRS, collect_pairs, first_only),
                           n_frames, workers, progress, scheduler)
     hits = [r[0] for r in results]
     pairs = [r[1] for r in results]
     if static.sum() >= 2:  # static pairs: test once, then repeat for every frame
-        s_hits, s_pairs = scan_frames(ps, poses, static, 0, 1, ONLY_STATIC_PAIRS, collect_pairs)
+        s_hits, s_pairs = scan_frames(ps, poses, static, 0, 1, ONLY_STATIC_PAIRS, collect_pairs, first_only)
         hits.append(_repeat_over_frames(s_hits, n_frames))
         pairs.append(_repeat_over_frames(s_pairs, n_frames))
     return np.concatenate(hits).reshape(-1, 6), np.concatenate(pairs).reshape(-1, 5)
+
+
+def smallest_pairs_at_frames(contacts, where, ps, poses, static):
+    """Set each contact's (tri_a, tri_b) that came from a frame hit to the smallest
+    intersecting pair at that frame (hits found without collecting pairs hold the
+    first pair found, which depends on the BVH)."""
+    steps, _, from_hit = where
+    for f in np.unique(steps[from_hit]):
+        hits, _ = scan_frames(ps, poses, static, f, f + 1, ALL_PAIRS, False, False)
+        smallest = {(a, b): (ta, tb) for _, a, b, _, ta, tb in hits.tolist()}
+        for k in np.flatnonzero(from_hit & (steps == f)):
+            contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
 def _run_swept(ps, poses, static, time_tol, dist_tol, workers, progress, scheduler=None):
@@ -226,7 +243,7 @@ def _fill_contact_points(contacts, where, scene, poses):
     where = (step, u): the vertices are interpolated linearly between frames
     step and step+1 (u = 0: the frame itself).
     """
-    steps, fractions = where
+    steps, fractions, _ = where
     for k in range(contacts["object_a"].shape[0]):
         step, u = steps[k], fractions[k]
         tris = []
@@ -286,6 +303,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         contacts, where = intervals_from_steps(steps, hits, frame_time)
     else:
         contacts, where = intervals_from_hits(hits, frame_time)
+    if not triangle_pairs:
+        smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
     _fill_contact_points(contacts, where, scene, poses)
     pairs = None
     if triangle_pairs:
@@ -307,7 +326,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                "contacts": int(contacts["object_a"].size),
                "swept_only_contacts": int((contacts["kind"] == KIND_SWEPT).sum()),
                "frames_in_contact": int(np.unique(hits[:, 0]).size),
-               "triangle_pairs": int(hits[:, 3].sum())},
+               "triangle_pairs": int(hits[:, 3].sum()) if triangle_pairs else None},
     )
     result.provenance = {
         "command": command or f"collide.scan({str(meshes)!r}, {str(trajectory)!r}, mode={mode!r})",

@@ -97,3 +97,20 @@ def test_peer_fcl_agrees_on_colliding_frames(envrob):
         if fcl.collide(env_obj, rob_obj, fcl.CollisionRequest(), fcl.CollisionResult()):
             colliding.append(f)
     assert colliding == sorted({f for f, _, _ in reference})
+
+
+def test_contact_rows_do_not_depend_on_split_or_triangle_pairs(envrob):
+    """Contacts name the smallest intersecting pair at their first frame, whether the scan
+    enumerated every pair (--triangle-pairs) or stopped at the first one found."""
+    meshes, traj, reference = envrob
+    runs = [collide.scan(meshes, traj, mode=mode, split=split, triangle_pairs=pairs).contacts
+            for mode in ("discrete", "continuous") for split in ("sah", "mean") for pairs in (True, False)]
+    for run in runs[1:4]:
+        assert all(np.array_equal(runs[0][k], run[k], equal_nan=True) for k in runs[0])
+    for run in runs[5:]:
+        assert all(np.array_equal(runs[4][k], run[k], equal_nan=True) for k in runs[4])
+    smallest = {}
+    for f, ta, tb in reference:
+        smallest.setdefault(f, (ta, tb))
+    c = runs[0]
+    assert [smallest[f] for f in c["frame_begin"]] == list(zip(c["tri_a"].tolist(), c["tri_b"].tolist()))

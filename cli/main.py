@@ -14,6 +14,7 @@ import click
 import collide
 from collide import config
 from collide.errors import CollideError
+from collide.plot import MAX_PAIRS as PLOT_MAX_PAIRS
 
 EXIT_FINDINGS = 1
 EXIT_BAD_INPUT = 2
@@ -60,7 +61,22 @@ def _progress_bar(total, label):
 
 # --- commands ------------------------------------------------------------------------------
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """A click group whose commands stop quietly (exit 0) when stdout's reader goes away.
+
+    click's own handler of a closed pipe exits 1, which a pipeline would read as
+    "findings" (``collide report ... | head -1``).
+    """
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except BrokenPipeError:
+            _silence_broken_pipe()
+            sys.exit(0)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(collide.__version__, "--version", prog_name="collide")
 def cli():
     """collide: when, where and for how long do triangle meshes touch along a motion.
@@ -210,9 +226,12 @@ def report(contacts, fmt, what):
         click.echo(json.dumps({"file": contacts, "mode": cf.attrs.get("mode"), "what": what,
                                "objects": cf.objects["name"], "rows": list(rows)}, indent=1))
     else:
+        if what == "contacts":
+            click.echo("contact intervals:")
         _print_table(list(rows), fields)
         if what == "contacts":
             click.echo()
+            click.echo("per object pair:")
             _print_table(rep.pair_rows(cf), rep.PAIR_FIELDS)
 
 
@@ -237,7 +256,7 @@ def _format_cell(value):
 def _print_table(rows, fields):
     """Aligned columns; numbers right-aligned."""
     if not rows:
-        click.echo(f"(no rows: {', '.join(fields[:4])}, ...)")
+        click.echo("(none)")
         return
     cells = [list(fields)] + [[_format_cell(r[f]) for f in fields] for r in rows]
     widths = [max(len(row[i]) for row in cells) for i in range(len(fields))]
@@ -274,11 +293,13 @@ def diff(baseline, contacts, time_tol):
 @click.option("-o", "--output", default="timeline.png", show_default=True, type=click.Path(),
               help="PNG file to write.")
 @click.option("--title", default=None, help="Plot title.")
+@click.option("--max-pairs", type=click.IntRange(min=1), default=PLOT_MAX_PAIRS, show_default=True,
+              help="Draw at most this many object pairs (those that touch first).")
 @verbosity_options
-def plot(contacts, output, title):
+def plot(contacts, output, title, max_pairs):
     """Draw the contact intervals of CONTACTS over time, one row per object pair (PNG)."""
     from collide.plot import plot_timeline
-    plot_timeline(collide.read_contacts(contacts), output, title)
+    plot_timeline(collide.read_contacts(contacts), output, title, max_pairs)
     click.echo(f"wrote {output}")
 
 

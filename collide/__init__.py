@@ -1,7 +1,7 @@
 """collide: when, where and for how long do triangle meshes touch along rigid-body trajectories.
 
 Pipeline (one module per stage): load -> bvh -> broad -> narrow -> contacts -> output,
-wired by scan.py. Public API::
+wired by pipeline.py. Public API::
 
     import collide
     result = collide.scan("meshes/", "traj.h5", mode="discrete")

@@ -59,6 +59,7 @@ def atomic_path(path):
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, _file_mode(path))
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -66,6 +67,17 @@ def atomic_path(path):
         except FileNotFoundError:
             pass
         raise
+
+
+def _file_mode(path):
+    """Permission bits for a new output file: those of the file it replaces, else
+    0o666 minus the umask (mkstemp's temporary files are private, 0o600)."""
+    try:
+        return os.stat(path).st_mode & 0o777
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
 
 
 def _write_columns(h5, group_name, columns, layout):
@@ -115,9 +127,13 @@ def _read_columns(h5, path, group, layout):
         key = f"{group}/{name}"
         if key not in h5:
             raise _bad(path, "missing dataset", dataset=key)
-        columns[name] = np.asarray(h5[key][()])
-        if columns[name].ndim != 1:
-            raise _bad(path, f"has shape {columns[name].shape}, not 1-D", dataset=key)
+        column = np.asarray(h5[key][()])
+        if column.ndim != 1:
+            raise _bad(path, f"has shape {column.shape}, not 1-D", dataset=key)
+        wanted = np.dtype(layout[name])
+        if column.dtype.kind not in ("iu" if wanted.kind in "iu" else "iuf"):
+            raise InputError(path, f"has dtype {column.dtype}", f"{wanted.name} values (SPEC §4)", dataset=key)
+        columns[name] = column.astype(wanted)
     lengths = {c.shape[0] for c in columns.values()}
     if len(lengths) > 1:
         raise _bad(path, f"columns have different lengths {sorted(lengths)}", dataset=group)
@@ -128,6 +144,8 @@ def read_contacts(path):
     """Read a contacts file; raises InputError if it is not one."""
     import h5py
     path = Path(path)
+    if path.is_dir():
+        raise InputError(path, "is a folder", "a collide contacts file (SPEC §4)")
     if not path.is_file():
         raise InputError(path, "no such file", "a collide contacts file (SPEC §4)")
     try:
@@ -140,7 +158,7 @@ def read_contacts(path):
             if attrs.get("collide_format") != FORMAT_NAME:
                 raise _bad(path, "not a collide contacts file (attribute collide_format is missing)")
             if int(attrs.get("format_version", -1)) != FORMAT_VERSION:
-                raise _bad(path, f"unsupported format_version {attrs.get('format_version')!r}")
+                raise _bad(path, f"unsupported format_version {attrs.get('format_version')}")
             for key in ("objects/name", "objects/mesh", "objects/triangles", "frames/time"):
                 if key not in h5:
                     raise _bad(path, "missing dataset", dataset=key)

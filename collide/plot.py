@@ -11,6 +11,8 @@ from .report import timeline
 
 FRAME_COLOUR = "#1f77b4"
 SWEPT_COLOUR = "#d62728"
+#: default limit of pairs drawn (one row each): beyond it the picture stops being readable
+MAX_PAIRS = 200
 
 
 def _pyplot():
@@ -23,12 +25,19 @@ def _pyplot():
     return plt
 
 
-def plot_timeline(cf, output, title=None):
-    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically)."""
+def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
+    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically).
+
+    One row per object pair; with more than ``max_pairs`` pairs only the
+    ``max_pairs`` that touch first are drawn (the title says so).
+    """
     plt = _pyplot()
     from matplotlib.patches import Patch
     rows = timeline(cf)
     labels = list(rows)
+    n_pairs = len(labels)
+    if n_pairs > max_pairs:
+        labels = sorted(labels, key=lambda label: (min(r[0] for r in rows[label]), label))[:max_pairs]
     times = cf.frame_time
     t0, t1 = (float(times[0]), float(times[-1])) if times.size else (0.0, 1.0)
     span = max(t1 - t0, 1e-12)
@@ -52,7 +61,9 @@ def plot_timeline(cf, output, title=None):
     ax.grid(axis="x", linestyle=":", alpha=0.5)
     ax.set_xlabel("time (frame ticks below the axis)")
     mode = cf.attrs.get("mode", "?")
-    ax.set_title(title or f"{len(labels)} object pairs in contact ({mode} mode)", fontsize=11, loc="left")
+    shown = f"{n_pairs} object pairs" if n_pairs == len(labels) else \
+        f"the {len(labels)} of {n_pairs} object pairs that touch first"
+    ax.set_title(title or f"{shown} in contact ({mode} mode)", fontsize=11, loc="left")
     if not labels:
         ax.text(0.5, 0.5, "no contacts", transform=ax.transAxes, ha="center", va="center", fontsize=14)
     ax.legend(handles=[Patch(facecolor=FRAME_COLOUR, edgecolor="black", label="contact seen at a frame"),

@@ -74,10 +74,43 @@ def test_report_pairs_and_triangle_pairs_and_table(scene):
 
 
 def test_report_into_closed_pipe_is_quiet(scene):
+    """``| head -1``: no traceback, and collide's own exit status is 0 (not 1, "findings")."""
     _, _, out, _ = scene
-    proc = subprocess.run(f"{sys.executable} -m collide_cli.main report {out} --what triangle-pairs --format csv"
-                          f" | head -1", shell=True, capture_output=True, text=True)
-    assert proc.stdout.startswith("frame,") and "Traceback" not in proc.stderr and proc.stderr == ""
+    for what in ("triangle-pairs", "contacts"):
+        proc = subprocess.run(f"{sys.executable} -m collide_cli.main report {out} --what {what} --format csv"
+                              " | head -c 1 >/dev/null; echo ${PIPESTATUS[0]}",
+                              shell=True, executable="/bin/bash", capture_output=True, text=True)
+        assert "Traceback" not in proc.stderr and proc.stderr == ""
+        assert proc.stdout.strip() == "0"
+
+
+def test_report_of_a_column_with_the_wrong_dtype_is_bad_input(scene, tmp_path):
+    _, _, out, _ = scene
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(out.read_bytes())
+    with h5py.File(bad, "r+") as f:
+        del f["contacts/t_begin"]
+        f["contacts/t_begin"] = np.array([b"x"] * f["contacts/t_end"].shape[0])
+    for command in (("report", bad), ("diff", out, bad)):
+        proc = run_cli(*command)
+        assert proc.returncode == 2 and proc.stderr.startswith(f"collide: error: {bad}:contacts/t_begin: "), \
+            proc.stderr
+    proc = run_cli("report", tmp_path)
+    assert proc.returncode == 2 and "is a folder" in proc.stderr
+
+
+def test_output_files_get_the_usual_permissions(scene, tmp_path):
+    """Temporary files are private (0o600); the renamed result is not."""
+    import os
+    meshes, traj, _, _ = scene
+    out = tmp_path / "perm.h5"
+    assert run_cli("scan", meshes, traj, "-o", out, "--mode", "discrete").returncode == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask
+    out.chmod(0o640)
+    assert run_cli("scan", meshes, traj, "-o", out, "--mode", "discrete").returncode == 0
+    assert out.stat().st_mode & 0o777 == 0o640
 
 
 def test_report_of_empty_result(tmp_path):
@@ -154,3 +187,6 @@ def test_plot_writes_png_with_bars(scene, tmp_path):
     red = (image[..., 0] > 0.7) & (image[..., 1] < 0.3) & (image[..., 2] < 0.3)   # swept-only bars
     blue = (image[..., 2] > 0.6) & (image[..., 0] < 0.3)                           # frame contact bars
     assert red.sum() > 50 and blue.sum() > 200
+    few = tmp_path / "few.png"
+    assert run_cli("plot", out, "-o", few, "--max-pairs", "1").returncode == 0
+    assert imread(few).shape[0] < image.shape[0]  # fewer rows drawn

@@ -311,8 +311,13 @@ def main(argv=None):
         cli.main(args=argv, prog_name="collide", standalone_mode=False)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except click.ClickException as exc:  # usage errors: click's own message, exit 2
-        exc.show()
+    except click.UsageError as exc:  # bad command line: one line, exit 2
+        command = exc.ctx.command_path if exc.ctx is not None else "collide"
+        message = " ".join(exc.format_message().split()).rstrip(".")
+        click.echo(f"collide: error: {message}; see '{command} --help'", err=True)
+        sys.exit(EXIT_BAD_INPUT)
+    except click.ClickException as exc:  # other click errors (file arguments): exit 2
+        click.echo(f"collide: error: {' '.join(exc.format_message().split())}", err=True)
         sys.exit(EXIT_BAD_INPUT if exc.exit_code in (1, 2) else exc.exit_code)
     except (KeyboardInterrupt, click.exceptions.Abort):
         click.echo("collide: interrupted", err=True)

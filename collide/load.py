@@ -81,7 +81,10 @@ def load_mesh(path):
     try:
         loaded = trimesh.load(str(path), process=False, force="mesh")
     except Exception as exc:  # trimesh raises many exception types for bad files
-        msg = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+        if isinstance(exc, ImportError):  # trimesh's fallback for undecodable text files
+            msg = f"content is not {path.suffix.lstrip('.').upper()} that trimesh can parse"
+        else:
+            msg = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
         raise InputError(path, f"cannot load mesh ({msg})", "a valid triangle mesh file") from None
     vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64)

@@ -6,7 +6,9 @@ removes the temporary file and leaves any existing output untouched.
 """
 import json
 import os
+import signal
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import NamedTuple
@@ -44,11 +46,37 @@ def check_output_path(path):
 
 
 @contextmanager
+def _interrupt_deferred():
+    """Hold Ctrl-C (SIGINT) back while the body runs; yields a dict whose key
+    "interrupted" tells whether one came.
+
+    A KeyboardInterrupt raised inside h5py's cleanup callbacks is printed and
+    dropped by Python, so an interrupt during writing could be lost and the
+    file renamed into place anyway. Only the main thread can set signal
+    handlers; elsewhere interrupts are not deferred.
+    """
+    state = {"interrupted": False}
+    if threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+
+    def note(signum, frame):
+        state["interrupted"] = True
+
+    previous = signal.signal(signal.SIGINT, note)
+    try:
+        yield state
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
 def atomic_path(path):
     """Yield a temporary path next to ``path``; rename it to ``path`` on success.
 
-    On any exception (including KeyboardInterrupt) the temporary file is
-    removed and ``path`` is left as it was.
+    On any exception, and on Ctrl-C during the body (raised as KeyboardInterrupt
+    once the body is done), the temporary file is removed and ``path`` is left
+    as it was.
     """
     path = Path(path)
     folder = check_output_path(path)
@@ -58,7 +86,10 @@ def atomic_path(path):
         raise InputError(path, f"cannot write in its folder ({exc.strerror})", "a writable folder") from None
     os.close(fd)
     try:
-        yield Path(tmp)
+        with _interrupt_deferred() as state:
+            yield Path(tmp)
+        if state["interrupted"]:
+            raise KeyboardInterrupt
         os.chmod(tmp, _file_mode(path))
         os.replace(tmp, path)
     except BaseException:

@@ -71,6 +71,8 @@ def test_usage_errors_exit_2(two_boxes, tmp_path):
         proc = run_cli(*args)
         assert proc.returncode == 2, (args, proc.stderr)
         assert "Traceback" not in proc.stderr
+        lines = proc.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith("collide: error: "), (args, proc.stderr)
 
 
 def test_validate_and_inspect(two_boxes):
@@ -132,6 +134,28 @@ def test_interrupt_exits_130_and_leaves_no_file(tmp_path):
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr
     assert list(tmp_path.glob(".c.h5*")) == [] and not out.exists()
+
+
+def test_interrupt_while_writing_keeps_the_old_output(two_boxes, tmp_path, monkeypatch):
+    """Ctrl-C that arrives while the file is being written (h5py would swallow it in a
+    cleanup callback) still ends the write: no new file, no temporary file, old output kept."""
+    import collide.output as output
+    meshes, traj = two_boxes
+    out = tmp_path / "c.h5"
+    out.write_bytes(b"old")
+    real_columns = output._write_columns
+
+    def interrupted_columns(*args):
+        os.kill(os.getpid(), signal.SIGINT)  # delivered in the middle of the write
+        return real_columns(*args)
+
+    monkeypatch.setattr(output, "_write_columns", interrupted_columns)
+    with pytest.raises(KeyboardInterrupt):
+        collide.scan(meshes, traj, mode="discrete", output=out)
+    assert out.read_bytes() == b"old" and list(tmp_path.glob(".c.h5*")) == []
+    monkeypatch.setattr(output, "_write_columns", real_columns)
+    collide.scan(meshes, traj, mode="discrete", output=out)  # the handler is restored: works again
+    assert collide.read_contacts(out).contacts["t_begin"].size == 1
 
 
 def test_existing_output_replaced_only_by_complete_file(two_boxes, tmp_path):

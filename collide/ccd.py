@@ -22,7 +22,10 @@ of the query, per axis).
 - The one exception: a query that exhausts the work caps (``MAX_CHECKS`` box checks,
   ``HEAP_SIZE`` live boxes, or boxes too narrow to split) returns the start of the
   earliest box it could not rule out: still never later than t*, but with no
-  near-contact certificate. This does not happen on the benchmark queries.
+  near-contact certificate. This does not happen on the benchmark queries nor on
+  random ordinary ones; it does on a few percent of queries whose triangle is
+  exactly degenerate (collinear corners) or whose edges are exactly parallel, and
+  there the answer measured within about 1e-8 of the step before the contact.
 
 Method: an inclusion-based root finder in the spirit of Tight-Inclusion (Wang et al.
 2021). Contact means F(t, u, v) = 0 for some (t, u, v) in the domain, with
@@ -38,20 +41,26 @@ the smallest and largest of its values at the 8 corners of the box. Boxes wait i
 min-heap ordered by their start time (deeper boxes first on ties). Taking the first:
 
 - excluded, dropped: on some axis all 8 corner values are > dist_tol + delta, or all
-  are < -(dist_tol + delta); or the same holds for n . F with n the normal of the two
-  edge directions (the face normal for vertex-face) at the box's middle time, with
-  the bound sum_i |n_i| (dist_tol + delta_i) (derivation below). The exact F then
-  stays beyond dist_tol on that axis (or direction) all over the box: no contact.
-- certify: a regularised Gauss-Newton step toward F = 0 proposes a point
-  (t_c, u_c, v_c) of the box and of the domain -- with t_c the box's start, then
-  anywhere in the box, then (for a box at most time_tol long) its end. F is computed
-  there afresh; if every axis is within dist_tol + 2 delta, the exact F is within
-  dist_tol + 3 delta: a certified near contact at t_c. The earliest such time is kept
-  as t_near. (The guess may be poor; only the check of the fresh values matters.)
-- otherwise the box is split in two: in time when that drops one half at once, or
-  when the box is longer than time_tol and its start is excluded (both keep the boxes
-  along a line or area of contact -- parallel edges, coplanar sliding, a thick
-  dist_tol -- from multiplying), else along the dimension where F changes most.
+  are < -(dist_tol + delta); or the same holds for d . F along one of three
+  directions computed at the box's middle time -- n, the cross product of the two
+  edge vectors (the face normal for vertex-face), and n x e for each of the two edge
+  vectors e -- with the bound sum_i |d_i| (dist_tol + delta_i) (derivation below).
+  The exact F then stays beyond dist_tol on that axis (or direction) all over the
+  box: no contact. (n . F does not change with u or v, n x e . F not with e's own
+  parameter: these separate thin triangles and nearly parallel edges, which the axis
+  tests alone only do after splitting the box very finely.)
+- certify: a regularised Gauss-Newton step on the corner values, refined by
+  NEWTON_ITERATIONS steps on the exact F, proposes a point (t_c, u_c, v_c) of the box
+  and of the domain -- with t_c the box's start, then anywhere in the box, then (for
+  a box at most time_tol long) its end. F is computed there afresh; if every axis is
+  within dist_tol + 2 delta, the exact F is within dist_tol + 3 delta: a certified
+  near contact at t_c. The earliest such time is kept as t_near. (The guess may be
+  poor; only the check of the fresh values matters.)
+- otherwise the box is split in two: in time when it is longer than time_tol and its
+  start is excluded (this keeps boxes along a line or area of contact -- parallel
+  edges, coplanar sliding, a thick dist_tol -- from multiplying), else along the
+  dimension whose halving brings a half nearest to exclusion by one of the tests
+  (looking at F on the splitting plane; ``_lookahead_dimension``).
 
 The search returns ``min(start, t_near)`` as soon as the first box's start reaches
 ``t_near - time_tol``, and inf when no box is left. Why this is never late: every
@@ -84,15 +93,15 @@ with or without contraction. Never compile this module with fastmath: it allows
 reassociation, which breaks the derivation. Inputs must be finite and well below
 1e150 (the public wrappers check both).
 
-Normal direction: for any float vector n, the computed
+Test directions: for any float vector n, the computed
 fl(fl(fl(n0 F0) + fl(n1 F1)) + fl(n2 F2)) of computed F values is within
 gamma_3 sum |n_i| |F_i| <= 3.01 u sum |n_i| 6.06 m_i (rounding of the dot product)
 plus sum |n_i| 50.7 u m_i (of the F values), i.e. within sum |n_i| 69 u m_i, of the
 exact n . F; and where the exact F is within dist_tol on every axis,
 |n . F| <= sum |n_i| dist_tol. The bound used, fl(sum |n_i| (dist_tol + delta_i))
 times (1 + 2^-50) plus 2^-1060, covers both (its own rounding is at most 6 u
-relative). n is computed once per box, so the 8 corners use the same n; an overflowed
-n gives inf or nan comparisons, which never exclude.
+relative). n is computed once per box, so the 8 corners use the same n; a test
+whose products overflow (inf or nan) is skipped: it never excludes.
 
 Domain: the certified point of a vertex-face box satisfies fl(u_c + v_c) <= 1, so
 u_c + v_c <= 1 + 2^-53; moving it into the triangle changes F by at most 4 u m,
@@ -109,13 +118,15 @@ _UNIT_ROUNDOFF = 2.0 ** -53
 ROUNDING_FACTOR = 128.0
 #: absolute part of the rounding bound (gradual underflow of tiny coordinates)
 _UNDERFLOW = 2.0 ** -1060
+#: Gauss-Newton steps when looking for a certified near contact in a box
+NEWTON_ITERATIONS = 2
 #: box checks per query before giving the conservative answer
 MAX_CHECKS = 50_000
 #: live boxes per query before giving the conservative answer
 HEAP_SIZE = 1024
 #: boxes this narrow (in t, u or v) are not split further along that dimension
 _MIN_WIDTH = 2.0 ** -60
-#: coordinates must stay below this (no overflow in F or in the normal tests)
+#: coordinates must stay below this (no overflow in F; overflowing direction tests are skipped)
 MAX_COORDINATE = 1e150
 
 # A box is a heap row: t_lo, t_hi, u_lo, u_hi, v_lo, v_hi, depth. Corner c of a box
@@ -214,51 +225,85 @@ def _edge_vector(kind, x_t0, x_t1, t, which, axis):
 
 
 @njit(cache=True)
-def _plane_normal(kind, x_t0, x_t1, t):
-    """(3-tuple) cross product of the two edge vectors at time t: the face normal for
-    vertex-face, ea x eb for edge-edge. Any vector would do for rigour; this one
-    separates nearly coplanar configurations best."""
+def _set_directions(kind, x_t0, x_t1, t, dist_tol, delta, dirs, bounds):
+    """Fill the test directions and their bounds (module docstring, "Test directions").
+
+    dirs (6, 3): rows 0-2 the x, y, z axes, row 3 n = e0 x e1 (the cross product of
+    the two edge vectors at time t: the face normal for vertex-face, ea x eb for
+    edge-edge), row 4 n x e0, row 5 n x e1. bounds (6,): rows 0-2 dist_tol + delta
+    per axis, rows 3-5 the rounding-safe bound of d . F (module docstring). Any
+    float vectors would do for rigour; these separate thin and nearly coplanar
+    configurations best: n . F does not depend on u or v at time t, n x e0 . F not
+    on the parameter of e0, n x e1 . F not on that of e1.
+    """
     a0 = _edge_vector(kind, x_t0, x_t1, t, 0, 0)
     a1 = _edge_vector(kind, x_t0, x_t1, t, 0, 1)
     a2 = _edge_vector(kind, x_t0, x_t1, t, 0, 2)
     b0 = _edge_vector(kind, x_t0, x_t1, t, 1, 0)
     b1 = _edge_vector(kind, x_t0, x_t1, t, 1, 1)
     b2 = _edge_vector(kind, x_t0, x_t1, t, 1, 2)
-    return (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+    n0 = a1 * b2 - a2 * b1
+    n1 = a2 * b0 - a0 * b2
+    n2 = a0 * b1 - a1 * b0
+    for k in range(3):
+        for axis in range(3):
+            dirs[k, axis] = 1.0 if k == axis else 0.0
+        bounds[k] = dist_tol + delta[k]
+    dirs[3, 0], dirs[3, 1], dirs[3, 2] = n0, n1, n2
+    dirs[4, 0], dirs[4, 1], dirs[4, 2] = n1 * a2 - n2 * a1, n2 * a0 - n0 * a2, n0 * a1 - n1 * a0
+    dirs[5, 0], dirs[5, 1], dirs[5, 2] = n1 * b2 - n2 * b1, n2 * b0 - n0 * b2, n0 * b1 - n1 * b0
+    for k in range(3, 6):
+        bounds[k] = (abs(dirs[k, 0]) * (dist_tol + delta[0]) + abs(dirs[k, 1]) * (dist_tol + delta[1])
+                     + abs(dirs[k, 2]) * (dist_tol + delta[2])) * (1.0 + 2.0 ** -50) + _UNDERFLOW
 
 
-@njit(cache=True)
-def _normal_excluded(kind, x_t0, x_t1, box, corners, delta, dist_tol):
-    """n . F keeps a sign beyond its rounding bound at all the values (rows of corners)
-    of F bounding the box (module docstring)."""
-    n = _plane_normal(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]))
-    bound = (abs(n[0]) * (dist_tol + delta[0]) + abs(n[1]) * (dist_tol + delta[1])
-             + abs(n[2]) * (dist_tol + delta[2])) * (1.0 + 2.0 ** -50) + _UNDERFLOW
+@njit(cache=True, inline="always")
+def _projected_range(dirs, k, values, n_values):
+    """(lo, hi) of dirs[k] . values[c] over the first n_values rows; (nan, nan) when a
+    product overflows (such a test must not exclude anything)."""
     lo = np.inf
     hi = -np.inf
-    for c in range(corners.shape[0]):
-        g = n[0] * corners[c, 0] + n[1] * corners[c, 1] + n[2] * corners[c, 2]
+    for c in range(n_values):
+        g = dirs[k, 0] * values[c, 0] + dirs[k, 1] * values[c, 1] + dirs[k, 2] * values[c, 2]
+        if not abs(g) < np.inf:
+            return np.nan, np.nan
         lo = min(lo, g)
         hi = max(hi, g)
-    return lo > bound or hi < -bound
+    return lo, hi
 
 
 @njit(cache=True)
-def _clipped_excluded(kind, x_t0, x_t1, box, delta, dist_tol, tol_out, values):
+def _directions_excluded(dirs, bounds, values, n_values):
+    """For one of the directions 3-5, d . F keeps one sign beyond bounds[k] at all the
+    values (rows of values) that bound F over a box."""
+    for k in range(3, 6):
+        lo, hi = _projected_range(dirs, k, values, n_values)
+        if lo > bounds[k] or hi < -bounds[k]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _clipped_excluded(kind, x_t0, x_t1, box, tol_out, dirs, bounds, values):
     """For a vertex-face box that straddles the triangle's edge u + v = 1: the exclusion
     tests over the part of the box inside the triangle only.
 
     For fixed t, the vertex-face F is affine in (u, v), so over (time interval) x
     (polygon) it lies within the hull of its values at the polygon's vertices at both
-    times. The polygon is the box's (u, v) rectangle cut by u + v <= 1, enlarged by
-    2^-52 along the cut so that rounding 1 - u can only make it larger.
+    times. The polygon is the box's (u, v) rectangle cut by u + v <= 1 (the caller
+    ensures u_lo + v_lo <= 1 < u_hi + v_hi), enlarged by 2^-52 along the cut so that
+    rounding 1 - u can only make it larger. Its vertices: (u_lo, v_lo); where the cut
+    meets the bottom and left sides (or those sides' far corners); where it meets
+    the right and top sides, if it does (else repeats of the previous two).
     values: (10, 3) scratch.
     """
     u_lo, u_hi, v_lo, v_hi = box[2], box[3], box[4], box[5]
-    u_cut = min(u_hi, (1.0 - v_lo) + 2.0 ** -52)  # on the edge, at v = v_lo
-    v_cut = min(v_hi, (1.0 - u_lo) + 2.0 ** -52)  # on the edge, at u = u_lo
-    polygon = ((u_lo, v_lo), (u_cut, v_lo), (u_lo, v_cut),
-               (u_hi, min(v_hi, (1.0 - u_hi) + 2.0 ** -52)), (min(u_hi, (1.0 - v_hi) + 2.0 ** -52), v_hi))
+    slack = 2.0 ** -52
+    bottom = (min(u_hi, (1.0 - v_lo) + slack), v_lo)
+    left = (u_lo, min(v_hi, (1.0 - u_lo) + slack))
+    right = (u_hi, min(v_hi, (1.0 - u_hi) + slack)) if u_hi + v_lo <= 1.0 else bottom
+    top = (min(u_hi, (1.0 - v_hi) + slack), v_hi) if u_lo + v_hi <= 1.0 else left
+    polygon = ((u_lo, v_lo), bottom, left, right, top)
     k = 0
     for face in range(2):
         for corner in polygon:
@@ -267,7 +312,7 @@ def _clipped_excluded(kind, x_t0, x_t1, box, delta, dist_tol, tol_out, values):
             for axis in range(3):
                 values[k, axis] = _f_axis(kind, x_t0, x_t1, box[face], u, v, axis)
             k += 1
-    return _excluded(values, tol_out) or _normal_excluded(kind, x_t0, x_t1, box, values, delta, dist_tol)
+    return _excluded(values, tol_out) or _directions_excluded(dirs, bounds, values, 10)
 
 
 # --- certification of a near contact ----------------------------------------------------------
@@ -314,24 +359,31 @@ def _newton_step(corners, face, scratch):
             f[axis] += weight * value
             for d in range(0 if face < 0 else 1, 3):
                 a[d, axis] += 2.0 * weight * value if c & (1 << d) else -2.0 * weight * value
-    g = scratch[0:3]
-    r = scratch[7]
+    return _regularised_solve(a.T, f, scratch[0:3], scratch[7], 1e-9)
+
+
+@njit(cache=True)
+def _regularised_solve(jac, f, gram, rhs, lam):
+    """x (3-tuple) solving (J^T J + lambda I) x = -J^T f for jac J (3, 3), with the
+    system scaled to trace 1 and lambda = lam (copes with the rank-deficient J of
+    parallel or coplanar motions); (0, 0, 0) when J is zero or not finite.
+    gram (3, 3) and rhs (3,): scratch."""
     for i in range(3):
         for j in range(3):
-            g[i, j] = a[i, 0] * a[j, 0] + a[i, 1] * a[j, 1] + a[i, 2] * a[j, 2]
-        r[i] = -(a[i, 0] * f[0] + a[i, 1] * f[1] + a[i, 2] * f[2])
-    trace = g[0, 0] + g[1, 1] + g[2, 2]
+            gram[i, j] = jac[0, i] * jac[0, j] + jac[1, i] * jac[1, j] + jac[2, i] * jac[2, j]
+        rhs[i] = -(jac[0, i] * f[0] + jac[1, i] * f[1] + jac[2, i] * f[2])
+    trace = gram[0, 0] + gram[1, 1] + gram[2, 2]
     if not 0.0 < trace < np.inf:
         return (0.0, 0.0, 0.0)  # F does not change over the box (or overflowed)
     for i in range(3):  # scale to trace 1 (the solution does not change), add lambda
-        r[i] /= trace
+        rhs[i] /= trace
         for j in range(3):
-            g[i, j] /= trace
-        g[i, i] += 1e-9
-    det = _det3(g, -1, r)
-    if not det > 0.0:  # g is symmetric positive definite: only rounding can get here
+            gram[i, j] /= trace
+        gram[i, i] += lam
+    det = _det3(gram, -1, rhs)
+    if not det > 0.0:  # gram is symmetric positive definite: only rounding can get here
         return (0.0, 0.0, 0.0)
-    return (_det3(g, 0, r) / det, _det3(g, 1, r) / det, _det3(g, 2, r) / det)
+    return (_det3(gram, 0, rhs) / det, _det3(gram, 1, rhs) / det, _det3(gram, 2, rhs) / det)
 
 
 @njit(cache=True, inline="always")
@@ -344,13 +396,60 @@ def _in_box(box, d, step):
 
 
 @njit(cache=True)
+def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, work):
+    """Refine the guess (t, u, v) toward F = 0 by NEWTON_ITERATIONS regularised
+    Gauss-Newton steps on the exact F (analytic derivatives), each kept in the box;
+    t stays fixed when fix_t. work: (8, 3) scratch. Only a guess: the caller checks
+    the point it leads to."""
+    jac = work[0:3]  # jac[axis, d]: change of F_axis across the box along dimension d
+    gram = work[3:6]
+    f = work[6]
+    rhs = work[7]
+    for _ in range(NEWTON_ITERATIONS):
+        for axis in range(3):
+            p0 = _lerp(x_t0, x_t1, 0, axis, t)
+            p1 = _lerp(x_t0, x_t1, 1, axis, t)
+            p2 = _lerp(x_t0, x_t1, 2, axis, t)
+            p3 = _lerp(x_t0, x_t1, 3, axis, t)
+            d0 = x_t1[0, axis] - x_t0[0, axis]
+            d1 = x_t1[1, axis] - x_t0[1, axis]
+            d2 = x_t1[2, axis] - x_t0[2, axis]
+            d3 = x_t1[3, axis] - x_t0[3, axis]
+            if kind == VERTEX_FACE:
+                f[axis] = ((p0 - p1) - u * (p2 - p1)) - v * (p3 - p1)
+                jac[axis, 0] = (d0 - d1) - u * (d2 - d1) - v * (d3 - d1)
+                jac[axis, 1] = p1 - p2
+                jac[axis, 2] = p1 - p3
+            else:
+                f[axis] = ((p0 - p2) + u * (p1 - p0)) - v * (p3 - p2)
+                jac[axis, 0] = (d0 - d2) + u * (d1 - d0) - v * (d3 - d2)
+                jac[axis, 1] = p1 - p0
+                jac[axis, 2] = p2 - p3
+            for d in range(3):
+                jac[axis, d] = 0.0 if (d == 0 and fix_t) else jac[axis, d] * (box[2 * d + 1] - box[2 * d])
+        step = _regularised_solve(jac, f, gram, rhs, 1e-12)  # small: the steps must reach ~1e-14
+        if not fix_t:
+            t = _clamp(t + step[0] * (box[1] - box[0]), box[0], box[1])
+        u = _clamp(u + step[1] * (box[3] - box[2]), box[2], box[3])
+        v = _clamp(v + step[2] * (box[5] - box[4]), box[4], box[5])
+    return t, u, v
+
+
+@njit(cache=True, inline="always")
+def _clamp(x, lo, hi):
+    return min(max(x, lo), hi) if np.isfinite(x) else lo
+
+
+@njit(cache=True)
 def _near_contact_at(kind, x_t0, x_t1, box, corners, face, tol_in, scratch):
-    """Time t_c of the candidate point from _newton_step(face) if F there, computed
-    afresh, is within tol_in on every axis and the point is in the domain; else -1.0."""
+    """Time t_c of the candidate point from _newton_step(face) and _gauss_newton if F
+    there, computed afresh, is within tol_in on every axis and the point is in the
+    domain; else -1.0."""
     x = _newton_step(corners, face, scratch)
     t = _in_box(box, 0, x[0]) if face < 0 else box[face]
     u = _in_box(box, 1, x[1])
     v = _in_box(box, 2, x[2])
+    t, u, v = _gauss_newton(kind, x_t0, x_t1, box, t, u, v, face >= 0, scratch)
     if kind == VERTEX_FACE and u + v > 1.0:  # pull it back into the triangle
         excess = 0.5 * (u + v - 1.0)
         u = max(u - excess, box[2])
@@ -382,13 +481,34 @@ def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
 # --- splitting --------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _split_dimension(corners, box):
+def _start_excluded(corners, tol_out):
+    """At the box's start time (the 4 even corners) some axis is beyond tol_out."""
+    for axis in range(3):
+        lo = min(corners[0, axis], corners[2, axis], corners[4, axis], corners[6, axis])
+        hi = max(corners[0, axis], corners[2, axis], corners[4, axis], corners[6, axis])
+        if lo > tol_out[axis] or hi < -tol_out[axis]:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _splittable(box, dim):
+    """The box can be halved along dim: wider than _MIN_WIDTH, and its midpoint falls
+    strictly inside (not so near an endpoint that it rounds onto it)."""
+    lo = box[2 * dim]
+    hi = box[2 * dim + 1]
+    mid = 0.5 * (lo + hi)
+    return hi - lo > _MIN_WIDTH and lo < mid < hi
+
+
+@njit(cache=True)
+def _largest_change_dimension(corners, box):
     """Dimension (0 t, 1 u, 2 v) along which F changes the most, among those still
     wider than _MIN_WIDTH; -1 if none can be split."""
     best = -1
     best_change = -1.0
     for dim in range(3):
-        if box[2 * dim + 1] - box[2 * dim] <= _MIN_WIDTH:
+        if not _splittable(box, dim):
             continue
         bit = 1 << dim
         change = 0.0
@@ -404,37 +524,54 @@ def _split_dimension(corners, box):
 
 
 @njit(cache=True)
-def _start_excluded(corners, tol_out):
-    """At the box's start time (the 4 even corners) some axis is beyond tol_out."""
-    for axis in range(3):
-        lo = min(corners[0, axis], corners[2, axis], corners[4, axis], corners[6, axis])
-        hi = max(corners[0, axis], corners[2, axis], corners[4, axis], corners[6, axis])
-        if lo > tol_out[axis] or hi < -tol_out[axis]:
-            return True
-    return False
+def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid):
+    """Dimension (0 t, 1 u, 2 v) to split the box along: the one whose halving brings
+    a half nearest to exclusion by one of the 6 tests (dirs, bounds; see
+    _set_directions), or when no test varies over the box the one along which F
+    changes most; -1 if none can be split. A heuristic only: the halves are tested
+    properly when taken.
 
-
-@njit(cache=True)
-def _time_split_drops_a_half(kind, x_t0, x_t1, box, corners, tol_out):
-    """Halving the box in time would exclude one of the halves at once (a heuristic
-    for choosing the split; the halves are tested properly when taken)."""
-    if box[1] - box[0] <= _MIN_WIDTH:
-        return False
-    mid = 0.5 * (box[0] + box[1])
-    for axis in range(3):
-        m0 = _f_axis(kind, x_t0, x_t1, mid, box[2], box[4], axis)
-        m1 = _f_axis(kind, x_t0, x_t1, mid, box[3], box[4], axis)
-        m2 = _f_axis(kind, x_t0, x_t1, mid, box[2], box[5], axis)
-        m3 = _f_axis(kind, x_t0, x_t1, mid, box[3], box[5], axis)
-        for side in range(2):  # 0: [t_lo, mid] with even corners, 1: [mid, t_hi] with odd
-            lo = min(m0, m1, m2, m3)
-            hi = max(m0, m1, m2, m3)
-            for c in range(side, 8, 2):
-                lo = min(lo, corners[c, axis])
-                hi = max(hi, corners[c, axis])
-            if lo > tol_out[axis] or hi < -tol_out[axis]:
-                return True
-    return False
+    For a test with range [lo, hi] over a half and bound b, the score
+    max(hi - b, -b - lo) / (hi - lo) exceeds 1 exactly when the test excludes the
+    half. mid (4, 3): scratch for F on the splitting plane.
+    """
+    best = -1
+    best_score = -np.inf
+    for dim in range(3):
+        if not _splittable(box, dim):
+            continue
+        bit = 1 << dim
+        half = 0.5 * (box[2 * dim] + box[2 * dim + 1])
+        if kind == VERTEX_FACE and dim > 0 and half + box[6 - 2 * dim] > 1.0:
+            return dim  # the upper half lies outside the triangle u + v <= 1: dropped at once
+        k = 0
+        for c in range(8):  # F on the splitting plane: the 4 corners shared by both halves
+            if c & bit:
+                continue
+            t = half if dim == 0 else (box[1] if c & 1 else box[0])
+            u = half if dim == 1 else (box[3] if c & 2 else box[2])
+            v = half if dim == 2 else (box[5] if c & 4 else box[4])
+            for axis in range(3):
+                mid[k, axis] = _f_axis(kind, x_t0, x_t1, t, u, v, axis)
+            k += 1
+        score = -np.inf
+        for side in range(2):
+            for test in range(6):
+                lo, hi = _projected_range(dirs, test, mid, 4)
+                for c in range(8):
+                    if ((c & bit) != 0) == (side == 1):
+                        g = dirs[test, 0] * corners[c, 0] + dirs[test, 1] * corners[c, 1] + \
+                            dirs[test, 2] * corners[c, 2]
+                        lo = min(lo, g)
+                        hi = max(hi, g)
+                if hi > lo:  # false for nan (overflow) and for a constant test
+                    score = max(score, max(hi - bounds[test], -bounds[test] - lo) / (hi - lo))
+        if score > best_score:
+            best_score = score
+            best = dim
+    if best < 0:
+        return _largest_change_dimension(corners, box)
+    return best
 
 
 # --- a min-heap of boxes keyed by (t_lo, -depth) ----------------------------------------------
@@ -499,6 +636,8 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in):
     corners = np.empty((8, 3))
     scratch = np.empty((8, 3))
     clipped = np.empty((10, 3))
+    dirs = np.empty((6, 3))
+    bounds = np.empty(6)
     box = np.empty(_ROW)
     heap[0, :] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0)
     n = 1
@@ -514,22 +653,23 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in):
         if kind == VERTEX_FACE and box[2] + box[4] > 1.0:
             continue  # wholly outside the triangle u + v <= 1
         _box_corners(kind, x_t0, x_t1, box, corners)
-        if _excluded(corners, tol_out) or _normal_excluded(kind, x_t0, x_t1, box, corners,
-                                                           delta, dist_tol):
+        if _excluded(corners, tol_out):
+            continue
+        _set_directions(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]), dist_tol, delta, dirs, bounds)
+        if _directions_excluded(dirs, bounds, corners, 8):
             continue
         if kind == VERTEX_FACE and box[3] + box[5] > 1.0 and _clipped_excluded(
-                kind, x_t0, x_t1, box, delta, dist_tol, tol_out, clipped):
+                kind, x_t0, x_t1, box, tol_out, dirs, bounds, clipped):
             continue
         t_c = _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch)
         if t_c >= 0.0:
             t_near = min(t_near, t_c)
             if box[0] >= t_near - time_tol:
                 return box[0]
-        if (_time_split_drops_a_half(kind, x_t0, x_t1, box, corners, tol_out)
-                or (box[1] - box[0] > max(time_tol, _MIN_WIDTH) and _start_excluded(corners, tol_out))):
+        if box[1] - box[0] > time_tol and _splittable(box, 0) and _start_excluded(corners, tol_out):
             dim = 0
         else:
-            dim = _split_dimension(corners, box)
+            dim = _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, scratch)
         if dim < 0 or n + 2 > HEAP_SIZE:
             return box[0]  # cannot split or store more: the earliest live box's start
         n = _heap_push_half(heap, n, box, dim, False)

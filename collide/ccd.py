@@ -25,7 +25,7 @@ of the query, per axis).
   near-contact certificate. This does not happen on the benchmark queries nor on
   random ordinary ones; it does on a few percent of queries whose triangle is
   exactly degenerate (collinear corners) or whose edges are exactly parallel, and
-  there the answer measured within about 1e-8 of the step before the contact.
+  there the answer measured within about 3e-8 of the step before the contact.
 
 Method: an inclusion-based root finder in the spirit of Tight-Inclusion (Wang et al.
 2021). Contact means F(t, u, v) = 0 for some (t, u, v) in the domain, with

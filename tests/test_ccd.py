@@ -340,17 +340,24 @@ def point_segment_distance(p, a, b):
     return np.linalg.norm(p - (a + s[:, None] * d), axis=1)
 
 
+def stationary_point(x, y, r, sign):
+    """Per row, the (s, t) minimising |r + s x + sign t y| (normal equations, Cramer) and
+    whether that 2 x 2 system is well conditioned; x, y, r (T, 3)."""
+    a, b, c = (np.einsum("ij,ij->i", p, q) for p, q in ((x, x), (x, y), (y, y)))
+    e, f = np.einsum("ij,ij->i", x, r), np.einsum("ij,ij->i", y, r)
+    det = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (b * f - c * e) / det
+        t = sign * (b * e - a * f) / det
+    return s, t, det > 1e-12 * (a * c + 1e-300)
+
+
 def point_triangle_distance(p, f0, f1, f2):
     """(T,) distances from points to closed triangles: the interior projection when it
     falls inside, else the nearest edge (a convex quadratic's minimum over a triangle)."""
     e1, e2, r = f1 - f0, f2 - f0, p - f0
-    a11, a12, a22 = (np.einsum("ij,ij->i", x, y) for x, y in ((e1, e1), (e1, e2), (e2, e2)))
-    b1, b2 = np.einsum("ij,ij->i", r, e1), np.einsum("ij,ij->i", r, e2)
-    det = a11 * a22 - a12 * a12
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = (b1 * a22 - b2 * a12) / det
-        v = (a11 * b2 - a12 * b1) / det
-    inside = (det > 1e-12 * (a11 * a22 + 1e-300)) & (u >= 0) & (v >= 0) & (u + v <= 1)
+    u, v, ok = stationary_point(-e1, -e2, r, 1.0)
+    inside = ok & (u >= 0) & (v >= 0) & (u + v <= 1)
     interior = np.linalg.norm(r - u[:, None] * e1 - v[:, None] * e2, axis=1)
     edges = np.minimum(np.minimum(point_segment_distance(p, f0, f1), point_segment_distance(p, f1, f2)),
                        point_segment_distance(p, f2, f0))
@@ -360,13 +367,8 @@ def point_triangle_distance(p, f0, f1, f2):
 def segment_distance(a0, a1, b0, b1):
     """(T,) distances between closed segments: interior stationary point or an endpoint."""
     d1, d2, r = a1 - a0, b1 - b0, a0 - b0
-    a, b, c = (np.einsum("ij,ij->i", x, y) for x, y in ((d1, d1), (d1, d2), (d2, d2)))
-    e, f = np.einsum("ij,ij->i", d1, r), np.einsum("ij,ij->i", d2, r)
-    det = a * c - b * b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (b * f - c * e) / det
-        t = (a * f - b * e) / det
-    ok = (det > 1e-12 * (a * c + 1e-300)) & (s >= 0) & (s <= 1) & (t >= 0) & (t <= 1)
+    s, t, ok = stationary_point(d1, d2, r, -1.0)
+    ok = ok & (s >= 0) & (s <= 1) & (t >= 0) & (t <= 1)
     interior = np.linalg.norm(r + s[:, None] * d1 - t[:, None] * d2, axis=1)
     ends = np.minimum.reduce([point_segment_distance(a0, b0, b1), point_segment_distance(a1, b0, b1),
                               point_segment_distance(b0, a0, a1), point_segment_distance(b1, a0, a1)])

@@ -6,8 +6,10 @@ import hashlib
 import logging
 import os
 import platform
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -259,6 +261,32 @@ def _fill_contact_points(contacts, where, scene, poses):
         contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
 
 
+@contextmanager
+def _compile_note(seconds=1.5):
+    """Tell the user (stderr, once) when the body takes longer than ``seconds``: on a
+    machine's first run the numba kernels compile (about a minute), with no other sign
+    of life."""
+    note = threading.Timer(seconds, log.warning, ("compiling collide's numba kernels for this machine "
+                                                 "(first run only: about a minute; later runs load them "
+                                                 "from numba's cache)",))
+    note.daemon = True
+    note.start()
+    try:
+        yield
+    finally:
+        note.cancel()
+
+
+def _compile_kernels(ps, poses, static, continuous, time_tol, dist_tol):
+    """Call every kernel of a scan once on no work, so that compiling (first run) or
+    loading them from numba's cache happens here, before the progress bar."""
+    scan_frames(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, False, True)
+    if continuous:
+        scan_intervals(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, time_tol, dist_tol)
+    triangle = np.ascontiguousarray(np.eye(3))
+    contact_point(triangle, triangle)
+
+
 def _check_options(mode, workers):
     if mode not in MODES:
         raise UsageError(f"unknown mode {mode!r}; expected one of {', '.join(MODES)}")
@@ -289,15 +317,19 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     frame_time = scene.time[index]
     timings["load_s"] = time.perf_counter() - start
 
-    ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size)
+    continuous = mode == "continuous"
+    with _compile_note():
+        ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size)
+        start = time.perf_counter()
+        dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
+        _compile_kernels(ps, poses, scene.static, continuous, time_tol, dist_tol)
+        timings["jit_s"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    continuous = mode == "continuous"
     work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
     hits, pair_rows = _run_discrete(ps, poses, scene.static, triangle_pairs, workers, work, scheduler)
     if continuous:
         rotation_warning(scene.names, poses, index)
-        dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
         steps = _run_swept(ps, poses, scene.static, time_tol, dist_tol, workers, work, scheduler)
         steps = np.concatenate([steps, _static_steps(hits, scene.static, poses.shape[0] - 1)])
         contacts, where = intervals_from_steps(steps, hits, frame_time)

@@ -301,8 +301,10 @@ def _clipped_excluded(kind, x_t0, x_t1, box, tol_out, dirs, bounds, values):
     slack = 2.0 ** -52
     bottom = (min(u_hi, (1.0 - v_lo) + slack), v_lo)
     left = (u_lo, min(v_hi, (1.0 - u_lo) + slack))
-    right = (u_hi, min(v_hi, (1.0 - u_hi) + slack)) if u_hi + v_lo <= 1.0 else bottom
-    top = (min(u_hi, (1.0 - v_hi) + slack), v_hi) if u_lo + v_hi <= 1.0 else left
+    # the cut meets the right (top) side iff the bottom (left) point reached the corner;
+    # decided on the same enlarged values, so rounding cannot leave a vertex out
+    right = (u_hi, min(v_hi, (1.0 - u_hi) + slack)) if bottom[0] == u_hi else bottom
+    top = (min(u_hi, (1.0 - v_hi) + slack), v_hi) if left[1] == v_hi else left
     polygon = ((u_lo, v_lo), bottom, left, right, top)
     k = 0
     for face in range(2):

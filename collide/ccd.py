@@ -632,8 +632,9 @@ def _heap_pop(heap, n, out):
 # --- the search -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in):
-    """Best-first box search (module docstring); returns the conservative toi or inf."""
+def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max):
+    """Best-first box search (module docstring); returns the conservative toi, or inf
+    when there is no contact at all or none before t_max."""
     heap = np.empty((HEAP_SIZE, _ROW))
     corners = np.empty((8, 3))
     scratch = np.empty((8, 3))
@@ -649,6 +650,8 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in):
         n = _heap_pop(heap, n, box)
         if box[0] >= t_near - time_tol:
             return min(box[0], t_near)
+        if box[0] > t_max:
+            return np.inf  # every box left starts after t_max
         checks += 1
         if checks > MAX_CHECKS:
             return box[0]  # the earliest box still alive
@@ -680,14 +683,23 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in):
 
 
 @njit(cache=True)
-def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
-    """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE)."""
+def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max):
+    """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE),
+    as vertex_face_toi_kernel / edge_edge_toi_kernel, except that inf may also mean
+    "no contact at or before t_max" (for callers that only need a minimum: a triangle
+    pair's first contact over its 15 queries)."""
     delta = _rounding_bound(x_t0, x_t1)
     tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
     if _root_excluded(kind, x_t0, x_t1, tol_out):
         return np.inf  # the common case: no allocation at all
     tol_in = (tol_out[0] + delta[0], tol_out[1] + delta[1], tol_out[2] + delta[2])
-    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in)
+    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max)
+
+
+@njit(cache=True)
+def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
+    """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE)."""
+    return toi_before(kind, x_t0, x_t1, time_tol, dist_tol, np.inf)
 
 
 @njit(cache=True)

@@ -7,7 +7,7 @@ row ``world_start[o] + v``. Faces are mesh-local vertex indices.
 import numpy as np
 from numba import njit
 
-from .ccd import edge_edge_toi_kernel, vertex_face_toi_kernel
+from .ccd import EDGE_EDGE, VERTEX_FACE, toi_before
 from .predicates import triangles_intersect
 
 
@@ -103,7 +103,8 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, x0, x1):
     The first contact of two disjoint triangles is a vertex touching a face or
     an edge touching an edge: the minimum over the 6 vertex-face and 9
     edge-edge certified CCD queries (conservative: never later than the true
-    time, at most time_tol earlier). Triangles already intersecting at t = 0
+    time, at most time_tol earlier); each query only searches up to the best
+    time found so far. Triangles already intersecting at t = 0
     (decided exactly) give 0. x0, x1: (4, 3) scratch buffers.
     """
     if triangles_intersect(p0, q0):
@@ -117,7 +118,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, x0, x1):
                 for r in range(3):
                     x0[r + 1, c] = other0[r, c]
                     x1[r + 1, c] = other1[r, c]
-            best = min(best, vertex_face_toi_kernel(x0, x1, time_tol, dist_tol))
+            best = min(best, toi_before(VERTEX_FACE, x0, x1, time_tol, dist_tol, best))
             if best == 0.0:
                 return 0.0
     for i in range(3):  # edge i of p against edge j of q
@@ -131,7 +132,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, x0, x1):
                 x1[1, c] = p1[(i + 1) % 3, c]
                 x1[2, c] = q1[j, c]
                 x1[3, c] = q1[(j + 1) % 3, c]
-            best = min(best, edge_edge_toi_kernel(x0, x1, time_tol, dist_tol))
+            best = min(best, toi_before(EDGE_EDGE, x0, x1, time_tol, dist_tol, best))
             if best == 0.0:
                 return 0.0
     return best

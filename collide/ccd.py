@@ -407,28 +407,17 @@ def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, work):
     gram = work[3:6]
     f = work[6]
     rhs = work[7]
+    sign_u = -1.0 if kind == VERTEX_FACE else 1.0  # F = ... -+ u e0 - v e1 (module docstring)
     for _ in range(NEWTON_ITERATIONS):
         for axis in range(3):
-            p0 = _lerp(x_t0, x_t1, 0, axis, t)
-            p1 = _lerp(x_t0, x_t1, 1, axis, t)
-            p2 = _lerp(x_t0, x_t1, 2, axis, t)
-            p3 = _lerp(x_t0, x_t1, 3, axis, t)
-            d0 = x_t1[0, axis] - x_t0[0, axis]
-            d1 = x_t1[1, axis] - x_t0[1, axis]
-            d2 = x_t1[2, axis] - x_t0[2, axis]
-            d3 = x_t1[3, axis] - x_t0[3, axis]
-            if kind == VERTEX_FACE:
-                f[axis] = ((p0 - p1) - u * (p2 - p1)) - v * (p3 - p1)
-                jac[axis, 0] = (d0 - d1) - u * (d2 - d1) - v * (d3 - d1)
-                jac[axis, 1] = p1 - p2
-                jac[axis, 2] = p1 - p3
-            else:
-                f[axis] = ((p0 - p2) + u * (p1 - p0)) - v * (p3 - p2)
-                jac[axis, 0] = (d0 - d2) + u * (d1 - d0) - v * (d3 - d2)
-                jac[axis, 1] = p1 - p0
-                jac[axis, 2] = p2 - p3
+            f[axis] = _f_axis(kind, x_t0, x_t1, t, u, v, axis)
+            # F is affine in t for fixed (u, v): its t-derivative is F(1) - F(0)
+            jac[axis, 0] = 0.0 if fix_t else (_f_axis(kind, x_t0, x_t1, 1.0, u, v, axis)
+                                              - _f_axis(kind, x_t0, x_t1, 0.0, u, v, axis))
+            jac[axis, 1] = sign_u * _edge_vector(kind, x_t0, x_t1, t, 0, axis)
+            jac[axis, 2] = -_edge_vector(kind, x_t0, x_t1, t, 1, axis)
             for d in range(3):
-                jac[axis, d] = 0.0 if (d == 0 and fix_t) else jac[axis, d] * (box[2 * d + 1] - box[2 * d])
+                jac[axis, d] *= box[2 * d + 1] - box[2 * d]
         step = _regularised_solve(jac, f, gram, rhs, 1e-12)  # small: the steps must reach ~1e-14
         if not fix_t:
             t = _clamp(t + step[0] * (box[1] - box[0]), box[0], box[1])
@@ -526,7 +515,7 @@ def _largest_change_dimension(corners, box):
 
 
 @njit(cache=True)
-def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid):
+def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid, proj):
     """Dimension (0 t, 1 u, 2 v) to split the box along: the one whose halving brings
     a half nearest to exclusion by one of the 6 tests (dirs, bounds; see
     _set_directions), or when no test varies over the box the one along which F
@@ -535,8 +524,13 @@ def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid):
 
     For a test with range [lo, hi] over a half and bound b, the score
     max(hi - b, -b - lo) / (hi - lo) exceeds 1 exactly when the test excludes the
-    half. mid (4, 3): scratch for F on the splitting plane.
+    half. Scratch: mid (4, 3) for F on the splitting plane, proj (6, 8) for the
+    tests' values at the corners.
     """
+    for test in range(6):
+        for c in range(8):
+            proj[test, c] = dirs[test, 0] * corners[c, 0] + dirs[test, 1] * corners[c, 1] + \
+                dirs[test, 2] * corners[c, 2]
     best = -1
     best_score = -np.inf
     for dim in range(3):
@@ -557,15 +551,15 @@ def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid):
                 mid[k, axis] = _f_axis(kind, x_t0, x_t1, t, u, v, axis)
             k += 1
         score = -np.inf
-        for side in range(2):
-            for test in range(6):
-                lo, hi = _projected_range(dirs, test, mid, 4)
+        for test in range(6):
+            mid_lo, mid_hi = _projected_range(dirs, test, mid, 4)
+            for side in range(2):
+                lo = mid_lo
+                hi = mid_hi
                 for c in range(8):
                     if ((c & bit) != 0) == (side == 1):
-                        g = dirs[test, 0] * corners[c, 0] + dirs[test, 1] * corners[c, 1] + \
-                            dirs[test, 2] * corners[c, 2]
-                        lo = min(lo, g)
-                        hi = max(hi, g)
+                        lo = min(lo, proj[test, c])
+                        hi = max(hi, proj[test, c])
                 if hi > lo:  # false for nan (overflow) and for a constant test
                     score = max(score, max(hi - bounds[test], -bounds[test] - lo) / (hi - lo))
         if score > best_score:
@@ -641,6 +635,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max)
     clipped = np.empty((10, 3))
     dirs = np.empty((6, 3))
     bounds = np.empty(6)
+    proj = np.empty((6, 8))
     box = np.empty(_ROW)
     heap[0, :] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0)
     n = 1
@@ -674,7 +669,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max)
         if box[1] - box[0] > time_tol and _splittable(box, 0) and _start_excluded(corners, tol_out):
             dim = 0
         else:
-            dim = _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, scratch)
+            dim = _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, scratch, proj)
         if dim < 0 or n + 2 > HEAP_SIZE:
             return box[0]  # cannot split or store more: the earliest live box's start
         n = _heap_push_half(heap, n, box, dim, False)

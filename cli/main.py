@@ -100,6 +100,14 @@ def cli():
 @click.option("--mode", type=click.Choice(["continuous", "discrete"]), default="continuous",
               show_default=True, help="continuous: also detect contact between frames; "
                                       "discrete: frame poses only.")
+@click.option("--interpolation", type=click.Choice(["screw", "linear-vertex"]), default="screw",
+              show_default=True, help="Continuous mode: how objects move between frames. screw: each "
+                                      "object turns and slides at a constant rate about one fixed axis "
+                                      "from one pose to the next (rigid); linear-vertex: every vertex "
+                                      "moves on a straight line.")
+@click.option("--warn-angle", type=click.FloatRange(min=0, max=180), default=config.SCREW_WARN_DEG,
+              show_default=True, metavar="DEGREES",
+              help="Screw motion: warn when an object turns more than this between two frames.")
 @click.option("--split", type=click.Choice(["sah", "median", "mean"]), default="sah", show_default=True,
               help="BVH split rule.")
 @click.option("--leaf-size", type=click.IntRange(min=1), default=None,
@@ -115,8 +123,8 @@ def cli():
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
               help="Summary format on stdout.")
 @verbosity_options
-def scan(meshes, trajectory, output, mode, split, leaf_size, triangle_pairs, frames, fail_on_contact,
-         workers, scheduler, time_tol, fmt):
+def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, leaf_size, triangle_pairs, frames,
+         fail_on_contact, workers, scheduler, time_tol, fmt):
     """Find when, where and for how long the meshes in MESHES touch along TRAJECTORY."""
     bar = None
     state = {"done": 0}
@@ -134,7 +142,8 @@ def scan(meshes, trajectory, output, mode, split, leaf_size, triangle_pairs, fra
     try:
         result = collide.scan(meshes, trajectory, mode=mode, split=split, leaf_size=leaf_size,
                               triangle_pairs=triangle_pairs, frames=frames, workers=workers,
-                              scheduler=scheduler, time_tol=time_tol, output=output, progress=progress,
+                              scheduler=scheduler, time_tol=time_tol, interpolation=interpolation,
+                              warn_angle=warn_angle, output=output, progress=progress,
                               command=" ".join(["collide"] + sys.argv[1:]))
     finally:
         if bar is not None:

@@ -12,20 +12,24 @@ Two levels:
    - ``RULE_POSE``: the objects at one pose. B's node boxes become oriented
      boxes in A's body frame, tested against A's axis-aligned node boxes with
      the separating-axis theorem (15 axes).
-   - ``RULE_SWEPT``: the objects moving from pose 0 to pose 1 with every
-     vertex on a straight line. A body box's world points stay inside the
-     union of its world boxes at both ends (each point moves on a segment
-     between its two end positions), so that union bounds the motion.
+   - ``RULE_SWEPT``: the objects moving from pose 0 to pose 1 over one step.
+     Each point's chord (straight path between its two end positions) stays
+     inside the union of its world boxes at both ends, and its real path
+     within the deviation bound of the motion (motion.py) of that chord: the
+     union widened by the bound holds the node over the whole step.
 
 Poses are passed as ``pose`` float64 (4, 3, 4): rows [R | p] of A at pose 0,
 A at pose 1, B at pose 0, B at pose 1 (world x = R @ body x + p); RULE_POSE
-reads only rows 0 and 2.
+reads only rows 0 and 2. ``motion`` float64 (2, MOTION_WIDTH): the motion rows
+(motion.py) of A and B over the step; only RULE_SWEPT reads it.
 
 Every box test is widened by ``margin`` (scene length units) so that rounding
 never drops a pair the exact narrow phase would report.
 """
 import numpy as np
 from numba import njit
+
+from .motion import box_deviation, chord_interval
 
 RULE_POSE = 0
 RULE_SWEPT = 1
@@ -35,29 +39,7 @@ RULE_SWEPT = 1
 _ABS_R_EPS = 1e-12
 
 
-# --- boxes in the world -------------------------------------------------------------
-
-@njit(cache=True, inline="always")
-def world_interval(lo, hi, rp, i):
-    """Range of world coordinate i over the body box [lo, hi] (3,) under rp = [R | p] (3, 4)."""
-    c = rp[i, 3]
-    e = 0.0
-    for j in range(3):
-        c += rp[i, j] * (0.5 * (lo[j] + hi[j]))
-        e += abs(rp[i, j]) * (0.5 * (hi[j] - lo[j]))
-    return c - e, c + e
-
-
-@njit(cache=True)
-def world_box(lo, hi, rp0, rp1):
-    """World AABB (lo (3,), hi (3,)) of the body box [lo, hi] over a linear motion
-    from pose rp0 to pose rp1 ((3, 4) each; pass the same pose twice for a still box)."""
-    w_lo = np.empty(3)
-    w_hi = np.empty(3)
-    for i in range(3):
-        w_lo[i], w_hi[i] = _swept_interval(lo, hi, rp0, rp1, i)
-    return w_lo, w_hi
-
+# --- boxes -------------------------------------------------------------------------------
 
 @njit(cache=True)
 def boxes_overlap(lo_a, hi_a, lo_b, hi_b):
@@ -175,29 +157,24 @@ def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
 
 
 @njit(cache=True, inline="always")
-def _swept_boxes_overlap(lo, hi, na, nb, pose, margin):
-    """World boxes of nodes na (object A) and nb (object B) over the motion overlap."""
+def _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
+    """World boxes of nodes na (object A) and nb (object B) over the step overlap: each
+    node's chord box widened by its deviation bound (motion.box_deviation)."""
+    margin_a = margin + box_deviation(motion[0], lo[na], hi[na], pose[0])
+    margin_b = margin + box_deviation(motion[1], lo[nb], hi[nb], pose[2])
     for i in range(3):
-        lo_a, hi_a = _swept_interval(lo[na], hi[na], pose[0], pose[1], i)
-        lo_b, hi_b = _swept_interval(lo[nb], hi[nb], pose[2], pose[3], i)
-        if lo_a - margin > hi_b + margin or lo_b - margin > hi_a + margin:
+        lo_a, hi_a = chord_interval(lo[na], hi[na], pose[0], pose[1], i)
+        lo_b, hi_b = chord_interval(lo[nb], hi[nb], pose[2], pose[3], i)
+        if lo_a - margin_a > hi_b + margin_b or lo_b - margin_b > hi_a + margin_a:
             return False
     return True
 
 
 @njit(cache=True, inline="always")
-def _swept_interval(lo, hi, rp0, rp1, i):
-    """World coordinate i's range of body box [lo, hi] at both poses rp0, rp1."""
-    lo0, hi0 = world_interval(lo, hi, rp0, i)
-    lo1, hi1 = world_interval(lo, hi, rp1, i)
-    return min(lo0, lo1), max(hi0, hi1)
-
-
-@njit(cache=True, inline="always")
-def _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, abs_r, margin):
+def _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
     if rule == RULE_POSE:
         return oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, abs_r, margin)
-    return _swept_boxes_overlap(lo, hi, na, nb, pose, margin)
+    return _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin)
 
 
 @njit(cache=True, inline="always")
@@ -209,12 +186,13 @@ def _half_area(lo, hi):
 
 
 @njit(cache=True)
-def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, rule, margin, out):
+def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, motion, rule, margin, out):
     """Leaf pairs of two BVHs whose boxes overlap under ``rule``.
 
     lo, hi, first, count: node arrays holding both trees (see bvh.py; ``first``
     of inner nodes indexes these same arrays). root_a, root_b: root nodes.
-    pose float64 (4, 3, 4): see module docstring. out: int64 (cap, 2) buffer,
+    pose float64 (4, 3, 4) and motion float64 (2, MOTION_WIDTH): see module docstring.
+    out: int64 (cap, 2) buffer,
     grown when full. Returns (out, k): rows out[:k] are (leaf_a, leaf_b).
     Node pairs are visited in a fixed order, so results are deterministic.
     """
@@ -229,7 +207,7 @@ def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, rule, margin,
         top -= 1
         na = stack[top, 0]
         nb = stack[top, 1]
-        if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, rel, abs_r, margin):
+        if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
             continue
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0

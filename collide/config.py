@@ -34,9 +34,26 @@ TIME_TOL = 1e-6
 #: fraction of the scene size (SPEC §3: pairs farther apart are never reported).
 DIST_TOL_REL = 1e-9
 
-#: scan warns when an object turns by more than this between consecutive frames
-#: (linear-vertex interpolation departs from rigid motion). Degrees.
-ROTATION_WARN_DEG = 10.0
+#: Screw interpolation: scan warns when an object turns by more than this between
+#: consecutive frames (the trajectory is then probably under-sampled: a turn of
+#: more than 180 degrees looks like a smaller one the other way). Degrees.
+SCREW_WARN_DEG = 90.0
+
+#: Screw interpolation: a rotation between two frames whose sine is below this
+#: (and cosine negative) is a half turn within the rounding of the pose data; its
+#: axis, and so the motion, is ambiguous (an input error). Unitless.
+SCREW_HALF_TURN_SIN = 1e-12
+
+#: Screw interpolation: an object pair's step is cut into equal sub-steps until, on
+#: each, the objects' paths stay within this fraction of the pair's size (the sum of
+#: their bounding-sphere diameters) of their chords. Only affects speed: smaller means
+#: more, tighter sub-steps. Unitless.
+SUBSTEP_DEVIATION_REL = 1e-3
+
+#: Linear-vertex interpolation: scan warns where the straight vertex paths depart
+#: from the rigid (screw) motion by more than this fraction of the object's size
+#: (its bounding-sphere diameter). Unitless.
+LINEAR_DEVIATION_WARN_REL = 1e-3
 
 # --- BVH ----------------------------------------------------------------------
 #: Default maximum number of triangles per BVH leaf.

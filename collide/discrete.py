@@ -13,11 +13,14 @@ Output rows (int64):
   triangle pair: the count is then 1 and (tri_a, tri_b) that first pair.
 - pairs (P, 5): frame, object_a, object_b, tri_a, tri_b (only when collected).
 """
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from . import config
-from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune, world_box
+from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune
+from .motion import MOTION_WIDTH, swept_box
 from .narrow import append_row, intersecting_triangles
 from .packed import to_world
 
@@ -38,33 +41,48 @@ def object_margins(ps, rp0, rp1, out):
 
 
 @njit(cache=True)
-def object_world_boxes(ps, rp0, rp1, extra, margin_out):
+def object_world_boxes(ps, rp0, rp1, motion, extra, margin):
     """World boxes lo, hi (N, 3) of every object's root box moving from poses rp0 to
-    rp1 (N, 3, 4) (pass the same poses twice for a still frame), widened by each
-    object's rounding margin (written to margin_out (N,)) plus ``extra``."""
+    rp1 (N, 3, 4) under motion rows motion (N, MOTION_WIDTH) (pass the same poses
+    twice and zero rows for a still frame), widened by each object's rounding margin
+    (N,) (object_margins) plus ``extra``."""
     n = rp0.shape[0]
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
-    object_margins(ps, rp0, rp1, margin_out)
     for o in range(n):
         root = ps.root[ps.object_mesh[o]]
-        w_lo, w_hi = world_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o])
-        lo[o] = w_lo - (margin_out[o] + extra)
-        hi[o] = w_hi + (margin_out[o] + extra)
+        w_lo, w_hi = swept_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o], motion[o])
+        lo[o] = w_lo - (margin[o] + extra)
+        hi[o] = w_hi + (margin[o] + extra)
     return lo, hi
 
 
 @njit(cache=True)
-def pair_leaves(ps, rp0, rp1, a, b, rule, margin, pose, leaves):
+def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, leaves):
     """Overlapping BVH leaf pairs of objects a and b (broad.overlapping_leaves) for poses
-    rp0 -> rp1 (N, 3, 4); pose (4, 3, 4) is scratch. Returns (leaves, count)."""
+    rp0 -> rp1 (N, 3, 4) and motion rows (N, MOTION_WIDTH); scratch: PairScratch.
+    Returns (leaves, count)."""
+    pose = scratch.pose
     pose[0] = rp0[a]
     pose[1] = rp1[a]
     pose[2] = rp0[b]
     pose[3] = rp1[b]
+    scratch.motion[0] = motion[a]
+    scratch.motion[1] = motion[b]
     return overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                              ps.root[ps.object_mesh[a]], ps.root[ps.object_mesh[b]], pose, rule,
-                              margin, leaves)
+                              ps.root[ps.object_mesh[a]], ps.root[ps.object_mesh[b]], pose,
+                              scratch.motion, rule, margin, leaves)
+
+
+class PairScratch(NamedTuple):
+    """Per-kernel scratch of pair_leaves."""
+    pose: np.ndarray    #: float64 (4, 3, 4)
+    motion: np.ndarray  #: float64 (2, MOTION_WIDTH)
+
+
+@njit(cache=True)
+def pair_scratch():
+    return PairScratch(np.empty((4, 3, 4)), np.empty((2, MOTION_WIDTH)))
 
 
 @njit(cache=True)
@@ -116,19 +134,22 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
     n_pairs = 0
     leaves = np.empty((256, 2), np.int64)
     tri = np.empty((64, 2), np.int64)
-    pose = np.empty((4, 3, 4))
+    scratch = pair_scratch()
+    still = np.zeros((n_objects, MOTION_WIDTH))
     hit = np.empty(6, np.int64)
     row = np.empty(5, np.int64)
     for f in range(frame_start, frame_stop):
         rp = poses[f]
-        lo, hi = object_world_boxes(ps, rp, rp, 0.0, margin)
+        object_margins(ps, rp, rp, margin)
+        lo, hi = object_world_boxes(ps, rp, rp, still, 0.0, margin)
         candidates = sweep_and_prune(lo, hi)
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
             if not pair_selected(pair_filter, static, a, b):
                 continue
-            leaves, n_leaves = pair_leaves(ps, rp, rp, a, b, RULE_POSE, margin[a] + margin[b], pose, leaves)
+            leaves, n_leaves = pair_leaves(ps, rp, rp, still, a, b, RULE_POSE, margin[a] + margin[b], scratch,
+                                           leaves)
             if n_leaves == 0:
                 continue
             ensure_world(ps, rp, a, f, static, stamp, world)

@@ -7,7 +7,7 @@ row ``world_start[o] + v``. Faces are mesh-local vertex indices.
 import numpy as np
 from numba import njit
 
-from .ccd import EDGE_EDGE, VERTEX_FACE, toi_before
+from .motion import M_ETA, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
 
 
@@ -80,10 +80,12 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
 
 @njit(cache=True, inline="always")
 def _swept_triangle_boxes_overlap(p0, p1, q0, q1, margin):
-    """Boxes of the 6 positions of each triangle (both ends of the motion) overlap.
+    """Boxes of the 6 positions of each triangle (both ends of the step) overlap, each
+    widened by margin (length units).
 
-    Valid for linear vertex motion: a moving triangle stays in the convex hull
-    of its vertices' start and end positions.
+    Under linear vertex motion a moving triangle stays in the convex hull of its
+    corners' start and end positions; under the screw motion within its deviation
+    bound of it (motion.py), which the caller adds to the margin.
     """
     for c in range(3):
         p_lo = min(p0[0, c], p0[1, c], p0[2, c], p1[0, c], p1[1, c], p1[2, c])
@@ -96,67 +98,18 @@ def _swept_triangle_boxes_overlap(p0, p1, q0, q1, margin):
 
 
 @njit(cache=True)
-def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, x0, x1):
-    """Earliest time in [0, 1] at which moving triangles p and q touch, inf if never.
-
-    p0, p1, q0, q1: (3, 3) vertex positions at t = 0 and t = 1 (linear motion).
-    The first contact of two disjoint triangles is a vertex touching a face or
-    an edge touching an edge: the minimum over the 6 vertex-face and 9
-    edge-edge certified CCD queries (conservative: never later than the true
-    time, at most time_tol earlier); each query only searches up to the best
-    time found so far. Triangles already intersecting at t = 0
-    (decided exactly) give 0. x0, x1: (4, 3) scratch buffers.
-    """
-    if triangles_intersect(p0, q0):
-        return 0.0
-    best = np.inf
-    for tri0, tri1, other0, other1 in ((p0, p1, q0, q1), (q0, q1, p0, p1)):
-        for v in range(3):  # vertex of one triangle against the other's face
-            for c in range(3):
-                x0[0, c] = tri0[v, c]
-                x1[0, c] = tri1[v, c]
-                for r in range(3):
-                    x0[r + 1, c] = other0[r, c]
-                    x1[r + 1, c] = other1[r, c]
-            best = min(best, toi_before(VERTEX_FACE, x0, x1, time_tol, dist_tol, best))
-            if best == 0.0:
-                return 0.0
-    for i in range(3):  # edge i of p against edge j of q
-        for j in range(3):
-            for c in range(3):
-                x0[0, c] = p0[i, c]
-                x0[1, c] = p0[(i + 1) % 3, c]
-                x0[2, c] = q0[j, c]
-                x0[3, c] = q0[(j + 1) % 3, c]
-                x1[0, c] = p1[i, c]
-                x1[1, c] = p1[(i + 1) % 3, c]
-                x1[2, c] = q1[j, c]
-                x1[3, c] = q1[(j + 1) % 3, c]
-            best = min(best, toi_before(EDGE_EDGE, x0, x1, time_tol, dist_tol, best))
-            if best == 0.0:
-                return 0.0
-    return best
-
-
-@njit(cache=True)
-def swept_contact_hulls(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
-                        world0, world1, world_base_a, world_base_b, time_tol, dist_tol, out, n_out):
-    """Contact time hulls of every touching triangle pair of the leaf pairs over one motion step.
-
-    Appends rows (t_first, t_last, tri_a, tri_b) (float64) to ``out`` (cap, 4):
-    t_first is the earliest contact (conservative, see triangle_pair_toi) and
-    t_last the latest one (the same test run backwards in time: 1 - toi of the
-    reversed motion; 1 when the triangles intersect at t = 1). Stops early once a
-    pair touches over the whole step (the union of the hulls is then [0, 1]).
-    Returns (out, n_out).
-    """
+def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
+                      world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out):
+    """Triangle pairs (tri_a, tri_b) of the leaf pairs whose boxes over the step, widened
+    by dist_tol, both triangles' deviation bounds and rounding margins, overlap.
+    Returns (out int64 (cap, 2), n), rows sorted by (tri_a, tri_b)."""
     p0 = np.empty((3, 3))
     p1 = np.empty((3, 3))
     q0 = np.empty((3, 3))
     q1 = np.empty((3, 3))
-    x0 = np.empty((4, 3))
-    x1 = np.empty((4, 3))
-    row = np.empty(4)
+    row = np.empty(2, np.int64)
+    n = 0
+    eta = motion_a[M_ETA] + motion_b[M_ETA]
     for k in range(n_leaves):
         la = leaves[k, 0]
         lb = leaves[k, 1]
@@ -164,22 +117,80 @@ def swept_contact_hulls(leaves, n_leaves, first, count, prim_ids, faces, face_ba
             tri_a = prim_ids[ia]
             gather_triangle(world0, world_base_a, faces, face_base_a + tri_a, p0)
             gather_triangle(world1, world_base_a, faces, face_base_a + tri_a, p1)
+            dev_p = point_deviation(motion_a, p0)
             for ib in range(first[lb], first[lb] + count[lb]):
                 tri_b = prim_ids[ib]
                 gather_triangle(world0, world_base_b, faces, face_base_b + tri_b, q0)
                 gather_triangle(world1, world_base_b, faces, face_base_b + tri_b, q1)
-                if not _swept_triangle_boxes_overlap(p0, p1, q0, q1, dist_tol):
-                    continue
-                t_first = triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, x0, x1)
-                if t_first == np.inf:
-                    continue
-                t_last = 1.0 - triangle_pair_toi(p1, p0, q1, q0, time_tol, dist_tol, x0, x1)
-                row[0] = t_first
-                row[1] = max(t_last, t_first)
-                row[2] = tri_a
-                row[3] = tri_b
-                out, n_out = append_row(out, n_out, row)
-                if t_first == 0.0 and t_last == 1.0:
-                    # in contact for the whole step: no other pair can change the union
-                    return out, n_out
-    return out, n_out
+                dev = dev_p + point_deviation(motion_b, q0)
+                if _swept_triangle_boxes_overlap(p0, p1, q0, q1, dist_tol + dev + eta):
+                    row[0] = tri_a
+                    row[1] = tri_b
+                    out, n = append_row(out, n, row)
+    order = np.argsort(out[:n, 0] * (out[:n, 1].max() + 1) + out[:n, 1]) if n > 0 else np.arange(0)
+    out[:n] = out[:n][order]
+    return out, n
+
+
+@njit(cache=True)
+def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
+                         world0, world1, world_base_a, world_base_b, motion_a, motion_b,
+                         time_tol, dist_tol, find_first, candidates):
+    """When two objects touch during one step, from the triangles of their leaf pairs.
+
+    Returns (candidates, t_first, t_last, tri_a, tri_b): the earliest contact of any
+    triangle pair and the latest one (fractions of the step, both conservative:
+    motion.triangle_pair_contact, under the objects' motion rows motion_a and
+    motion_b), and the smallest pair touching at t_first; t_first = inf when none
+    touches. A contact that ends and starts again within the step is reported as one
+    (the step is the resolution of gaps). Every triangle pair's search only looks
+    for contacts that could still move t_first (or t_last), so most pairs stop early.
+    With find_first False only t_last is searched (t_first stays inf, t_last is -inf
+    when none touches). candidates: int64 (cap, 2) scratch, grown and returned.
+    """
+    candidates, n = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
+                                      face_base_b, world0, world1, world_base_a, world_base_b,
+                                      motion_a, motion_b, dist_tol, candidates)
+    corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
+    work = np.empty((2, 4, 3))
+    t_first = np.inf
+    best_a = -1
+    best_b = -1
+    for k in range(n if find_first else 0):  # earliest contact; sorted: ties keep the smaller pair
+        t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
+                               world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
+                               t_first, False, corners, work)
+        if t < t_first:
+            t_first = t
+            best_a = candidates[k, 0]
+            best_b = candidates[k, 1]
+            if t_first == 0.0:
+                break
+    t_last = t_first if find_first else -np.inf  # the last contact is no earlier than the first
+    for k in range(n):
+        if (find_first and t_first == np.inf) or t_last == 1.0:
+            break
+        t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
+                               world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
+                               t_last, True, corners, work)
+        t_last = max(t_last, t)
+    return candidates, t_first, t_last, best_a, best_b
+
+
+@njit(cache=True)
+def _candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, world1, world_base_a,
+                       world_base_b, motion_a, motion_b, time_tol, dist_tol, limit, backwards, corners, work):
+    """motion.triangle_pair_contact of triangles tri_a of A and tri_b of B; corners (4, 3, 3)
+    and work (2, 4, 3) scratch."""
+    p0 = corners[0]
+    p1 = corners[1]
+    q0 = corners[2]
+    q1 = corners[3]
+    gather_triangle(world0, world_base_a, faces, face_base_a + tri_a, p0)
+    gather_triangle(world1, world_base_a, faces, face_base_a + tri_a, p1)
+    gather_triangle(world0, world_base_b, faces, face_base_b + tri_b, q0)
+    gather_triangle(world1, world_base_b, faces, face_base_b + tri_b, q1)
+    dev = point_deviation(motion_a, p0) + point_deviation(motion_b, q0)
+    eta = motion_a[M_ETA] + motion_b[M_ETA]
+    return triangle_pair_contact(motion_a, motion_b, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit,
+                                 backwards, work)

@@ -20,8 +20,9 @@ from .closest import contact_point
 from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, intervals_from_hits,
                        intervals_from_steps, sort_columns)
 from .discrete import ALL_PAIRS, ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
-from .errors import UsageError
+from .errors import InputError, UsageError
 from .load import load_scene
+from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
 from .swept import scan_intervals
@@ -191,12 +192,13 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
             contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
-def _run_swept(ps, poses, static, time_tol, dist_tol, workers, progress, scheduler=None):
+def _run_swept(ps, poses, static, interpolation, time_tol, dist_tol, workers, progress, scheduler=None):
     """Contact rows (R, 7) of every motion step (static pairs excluded: they never move)."""
     n_steps = poses.shape[0] - 1
     if n_steps < 1:
         return np.zeros((0, 7))
-    results = _run_chunks(scan_intervals, (ps, poses, static), (SKIP_STATIC_PAIRS, time_tol, dist_tol),
+    results = _run_chunks(scan_intervals, (ps, poses, static),
+                          (SKIP_STATIC_PAIRS, INTERPOLATIONS[interpolation], time_tol, dist_tol),
                           n_steps, workers, progress, scheduler)
     return np.concatenate(results).reshape(-1, 7)
 
@@ -224,28 +226,57 @@ def scene_size(ps, poses):
     return float(np.linalg.norm((world + radius).max(axis=(0, 1)) - (world - radius).min(axis=(0, 1))))
 
 
-def rotation_warning(names, poses, frame_index):
-    """Warn (once) when an object turns more than config.ROTATION_WARN_DEG between frames."""
+def check_motion(scene, ps, poses, frame_index, interpolation, warn_angle):
+    """Check how objects turn between frames: raise InputError for a half turn under the
+    screw motion (its axis is ambiguous); warn (once, the worst case) when a screw turns
+    more than warn_angle degrees per frame, or when linear vertex paths depart from the
+    rigid motion by more than config.LINEAR_DEVIATION_WARN_REL of the object's size."""
     if poses.shape[0] < 2:
         return
-    r0, r1 = poses[:-1, :, :, :3], poses[1:, :, :, :3]
-    cos = (np.einsum("tnij,tnij->tn", r0, r1) - 1.0) / 2.0
-    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))          # (T-1, N)
-    step, obj = np.unravel_index(int(np.argmax(angle)), angle.shape)
-    if angle[step, obj] > config.ROTATION_WARN_DEG:
-        log.warning("object %r turns by %.1f degrees between frames %d and %d (limit %.0f); continuous mode "
-                    "moves vertices on straight lines between frames, which departs from the rigid motion: "
-                    "sample the trajectory more finely", names[obj], angle[step, obj], frame_index[step],
-                    frame_index[step + 1], config.ROTATION_WARN_DEG)
+    centres = np.ascontiguousarray(ps.centre[ps.object_mesh])
+    radii = np.ascontiguousarray(ps.sphere_radius[ps.object_mesh])
+    summary = np.empty((poses.shape[0] - 1, poses.shape[1], 2))
+    motion_summary(poses, centres, radii, summary)
+    angle, deviation = summary[..., 0], summary[..., 1]
+    names = scene.names
+
+    def frames(step):
+        return f"frames {frame_index[step]} and {frame_index[step + 1]}"
+
+    if interpolation == "screw":
+        if (angle < 0).any():
+            step, obj = np.argwhere(angle < 0)[0]
+            raise InputError(scene.trajectory_path, f"object {names[obj]!r} turns half a turn (180 degrees) "
+                             f"between {frames(step)}, so the direction of the turn is ambiguous",
+                             "less than half a turn per frame (sample the trajectory more finely)",
+                             dataset="poses")
+        degrees = np.degrees(angle)
+        above = degrees > warn_angle
+        if above.any():
+            step, obj = np.unravel_index(int(np.argmax(degrees)), degrees.shape)
+            log.warning("object %r turns by %.1f degrees between %s (%d steps above %g degrees); the "
+                        "trajectory is probably under-sampled: sample it more finely", names[obj],
+                        degrees[step, obj], frames(step), int(above.sum()), warn_angle)
+        return
+    size = 2.0 * radii
+    excess = np.where(angle < 0, np.inf, deviation / np.maximum(size, np.finfo(float).tiny))
+    step, obj = np.unravel_index(int(np.argmax(excess)), excess.shape)
+    if excess[step, obj] > config.LINEAR_DEVIATION_WARN_REL:
+        how = "by half a turn" if angle[step, obj] < 0 else f"up to {deviation[step, obj]:.3g} length units"
+        log.warning("object %r: between %s its straight vertex paths (--interpolation linear-vertex) depart "
+                    "from its rigid motion %s (its size is %.3g; warning above %g of it); use "
+                    "--interpolation screw or sample the trajectory more finely", names[obj], frames(step),
+                    how, size[obj], config.LINEAR_DEVIATION_WARN_REL)
 
 
-def _fill_contact_points(contacts, where, scene, poses):
+def _fill_contact_points(contacts, where, scene, poses, interpolation):
     """World contact point of each contact's (tri_a, tri_b) at its first moment.
 
-    where = (step, u): the vertices are interpolated linearly between frames
-    step and step+1 (u = 0: the frame itself).
+    where = (step, u): the moment is fraction u of the step from frame step to
+    step+1 (u = 0: the frame itself), where objects move as ``interpolation`` says.
     """
     steps, fractions, _ = where
+    motion = np.zeros(MOTION_WIDTH)
     for k in range(contacts["object_a"].shape[0]):
         step, u = steps[k], fractions[k]
         tris = []
@@ -255,7 +286,10 @@ def _fill_contact_points(contacts, where, scene, poses):
             corners = mesh.vertices[mesh.faces[contacts[tri][k]]]
             position = world_vertices(corners, poses[step, o])
             if u > 0.0:
-                position = (1.0 - u) * position + u * world_vertices(corners, poses[step + 1, o])
+                motion[:] = 0.0
+                if interpolation == "screw":
+                    screw_motion(poses[step, o], poses[step + 1, o], 0.0, motion)
+                points_at(motion, position.copy(), world_vertices(corners, poses[step + 1, o]), u, position)
             tris.append(np.ascontiguousarray(position))
         point, _ = contact_point(tris[0], tris[1])
         contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
@@ -277,19 +311,22 @@ def _compile_note(seconds=1.5):
         note.cancel()
 
 
-def _compile_kernels(ps, poses, static, continuous, time_tol, dist_tol):
+def _compile_kernels(ps, poses, static, continuous, interpolation, time_tol, dist_tol):
     """Call every kernel of a scan once on no work, so that compiling (first run) or
     loading them from numba's cache happens here, before the progress bar."""
     scan_frames(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, False, True)
     if continuous:
-        scan_intervals(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, time_tol, dist_tol)
+        scan_intervals(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, INTERPOLATIONS[interpolation], time_tol,
+                       dist_tol)
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
 
 
-def _check_options(mode, workers):
+def _check_options(mode, interpolation, workers):
     if mode not in MODES:
         raise UsageError(f"unknown mode {mode!r}; expected one of {', '.join(MODES)}")
+    if interpolation not in INTERPOLATIONS:
+        raise UsageError(f"unknown interpolation {interpolation!r}; expected one of {', '.join(INTERPOLATIONS)}")
     workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if workers < 1:
         raise UsageError(f"workers must be >= 1, got {workers}")
@@ -298,15 +335,18 @@ def _check_options(mode, workers):
 
 def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          triangle_pairs=False, frames=None, workers=None, scheduler=None,
-         time_tol=config.TIME_TOL, output=None, progress=None, command=None):
+         time_tol=config.TIME_TOL, interpolation="screw", warn_angle=config.SCREW_WARN_DEG,
+         output=None, progress=None, command=None):
     """Find when, where and for how long the meshes touch along the trajectory.
 
-    Parameters mirror ``collide scan`` (SPEC §1); ``time_tol`` is a fraction of
-    the frame interval. ``progress(done, total)`` is called as work completes.
-    With ``output`` the result is also written there (atomically). Returns a
-    ScanResult.
+    Parameters mirror ``collide scan``; ``time_tol`` is a fraction of the frame
+    interval; ``interpolation`` ("screw" or "linear-vertex") the motion between
+    frames in continuous mode; ``warn_angle`` (degrees per frame) where screw
+    motion warns of under-sampling. ``progress(done, total)`` is called as work
+    completes. With ``output`` the result is also written there (atomically).
+    Returns a ScanResult.
     """
-    workers = _check_options(mode, workers)
+    workers = _check_options(mode, interpolation, workers)
     if output is not None:
         check_output_path(output)  # fail before the work, not after
     timings = {}
@@ -322,22 +362,24 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size)
         start = time.perf_counter()
         dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
-        _compile_kernels(ps, poses, scene.static, continuous, time_tol, dist_tol)
+        if continuous:
+            check_motion(scene, ps, poses, index, interpolation, warn_angle)
+        _compile_kernels(ps, poses, scene.static, continuous, interpolation, time_tol, dist_tol)
         timings["jit_s"] = time.perf_counter() - start
 
     start = time.perf_counter()
     work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
     hits, pair_rows = _run_discrete(ps, poses, scene.static, triangle_pairs, workers, work, scheduler)
     if continuous:
-        rotation_warning(scene.names, poses, index)
-        steps = _run_swept(ps, poses, scene.static, time_tol, dist_tol, workers, work, scheduler)
+        steps = _run_swept(ps, poses, scene.static, interpolation, time_tol, dist_tol, workers, work,
+                           scheduler)
         steps = np.concatenate([steps, _static_steps(hits, scene.static, poses.shape[0] - 1)])
         contacts, where = intervals_from_steps(steps, hits, frame_time)
     else:
         contacts, where = intervals_from_hits(hits, frame_time)
     if not triangle_pairs:
         smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
-    _fill_contact_points(contacts, where, scene, poses)
+    _fill_contact_points(contacts, where, scene, poses, interpolation)
     pairs = None
     if triangle_pairs:
         pairs = sort_columns(columns_from_rows(pair_rows, TRIANGLE_PAIR_COLUMNS),
@@ -346,13 +388,14 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
 
     parameters = {"mode": mode, "split": split, "leaf_size": leaf_size or config.DEFAULT_LEAF_SIZE,
                   "triangle_pairs": bool(triangle_pairs), "frames": None if frames is None else str(frames),
-                  "workers": workers, "scheduler": scheduler, "time_tol": time_tol}
+                  "workers": workers, "scheduler": scheduler, "time_tol": time_tol,
+                  "interpolation": interpolation}
     result = ScanResult(
         object_names=list(scene.names),
         object_meshes=[scene.meshes[m].path.name for m in scene.object_mesh],
         object_triangles=np.array([scene.meshes[m].faces.shape[0] for m in scene.object_mesh]),
         frame_time=frame_time, frame_index=index, contacts=contacts, triangle_pairs=pairs,
-        mode=mode, interpolation="linear-vertex" if continuous else "none",
+        mode=mode, interpolation=interpolation,
         provenance={}, versions=versions(),
         stats={**timings, "frames": int(index.size), "objects": len(scene.names),
                "contacts": int(contacts["object_a"].size),

@@ -1,32 +1,45 @@
-"""Continuous detection: contact between frames, under linear vertex motion.
+"""Continuous detection: contact between frames.
 
-Between frames k and k+1 every world-space vertex moves on a straight line
-(SPEC §3, ``interpolation = "linear-vertex"``). ``scan_intervals`` is the
-kernel for a chunk of such motion steps. Per step:
+Between frames k and k+1 (a *step*) objects move as motion.py describes
+(``--interpolation``: screw or linear-vertex). ``scan_intervals`` is the
+kernel for a chunk of steps. Per step:
 
+0. motion: each object's motion row (motion.step_motions);
 1. objects: world boxes bounding each object's motion (its root box at both
-   poses), sweep and prune;
+   poses, widened by its deviation bound), sweep and prune;
 2. object pairs: the lecture's swept-sphere test. Each object lies in a sphere
-   of radius r around its body centre c; under linear vertex motion the centre
-   moves linearly too and every vertex stays within r of it, so with s the
-   centre offset at t = 0 and v the relative velocity over the step, the
-   spheres can only overlap when (v·v)t² + 2(v·s)t + (s·s − r²) <= 0;
-   a pair whose window misses [0, 1] is skipped;
+   of radius r around its body centre c at every moment. The chord of c moves
+   linearly; with s the chords' offset at t = 0 and v their relative velocity
+   over the step, spheres of radius r_a + r_b + dev (dev: both centres'
+   deviation bounds) around the chords can only meet when
+   (v·v)t² + 2(v·s)t + (s·s − r²) <= 0; a pair whose window misses [0, 1] is
+   skipped;
 3. BVH leaves: tandem descent with boxes bounding the motion (RULE_SWEPT);
-4. triangles: certified CCD (narrow.swept_contact_hulls) gives each touching
-   triangle pair's first and last contact time; their union, per object pair,
-   is the object pair's contact during the step.
+4. triangles: certified CCD (narrow.swept_contact_window) gives the object
+   pair's first and last contact during the step, over all its triangle pairs.
+
+Objects that turn a lot in one step sweep large volumes, and boxes around a
+whole step's arc are loose; for such a pair steps 3 and 4 run on equal
+sub-steps (motion.substeps), each a small screw motion of its own with tight
+boxes: the first sub-step (in time) with a contact gives t_first, the last
+one t_last.
 
 Output rows float64 (R, 7): step k, object_a, object_b, t_begin, t_end (in
 [0, 1] of the step), tri_a, tri_b (the pair touching first).
 """
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from .analytic import sphere_overlap_window
 from .broad import RULE_SWEPT, sweep_and_prune
-from .discrete import ensure_world, object_world_boxes, pair_leaves, pair_selected
-from .narrow import append_row, swept_contact_hulls
+from .discrete import (ensure_world, object_margins, object_world_boxes, pair_leaves, pair_scratch,
+                       pair_selected)
+from .motion import (M_ETA, MOTION_WIDTH, pose_at, screw_motion, sphere_deviation, step_motions,
+                     substeps)
+from .narrow import append_row, swept_contact_window
+from .packed import to_world
 
 
 @njit(cache=True)
@@ -38,7 +51,7 @@ def _world_centre(c, rp):
 
 
 @njit(cache=True)
-def spheres_may_meet(ps, rp0, rp1, a, b, margin):
+def spheres_may_meet(ps, rp0, rp1, motion, a, b, margin):
     """The swept bounding spheres of objects a and b overlap at some t in [0, 1]."""
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
@@ -48,38 +61,120 @@ def spheres_may_meet(ps, rp0, rp1, a, b, margin):
     cb1 = _world_centre(ps.centre[mesh_b], rp1[b])
     s = ca0 - cb0
     v = (ca1 - ca0) - (cb1 - cb0)
-    r = ps.sphere_radius[mesh_a] + ps.sphere_radius[mesh_b] + margin
+    dev = sphere_deviation(motion[a], ca0) + sphere_deviation(motion[b], cb0)
+    if dev > 0.0:
+        dev += motion[a, M_ETA] + motion[b, M_ETA]
+    r = ps.sphere_radius[mesh_a] + ps.sphere_radius[mesh_b] + margin + dev
     t_lo, t_hi = sphere_overlap_window(s, v, r)
     return t_lo <= t_hi
 
 
+class SubStep(NamedTuple):
+    """Buffers for the sub-steps of one object pair (N objects, W world vertex rows;
+    only the rows of the pair's two objects are used)."""
+    pose0: np.ndarray   #: float64 (N, 3, 4) poses at a sub-step's start
+    pose1: np.ndarray   #: float64 (N, 3, 4) and end
+    motion: np.ndarray  #: float64 (N, MOTION_WIDTH) motion rows over the sub-step
+    world0: np.ndarray  #: float64 (W, 3) world vertices at the sub-step's start
+    world1: np.ndarray  #: float64 (W, 3) and end
+
+
 @njit(cache=True)
-def merge_hulls(hulls, n):
-    """Union of time intervals hulls[:n, 0:2]: rows (t_begin, t_end, tri_a, tri_b) of
-    each maximal interval, with the triangle pair of its earliest (then smallest) hull."""
-    order = np.argsort(hulls[:n, 0], kind="mergesort")
-    out = np.empty((n, 4))
-    m = -1
-    for k in range(n):
-        h = hulls[order[k]]
-        if m >= 0 and h[0] <= out[m, 1]:
-            out[m, 1] = max(out[m, 1], h[1])
-            if h[0] == out[m, 0] and (h[2] < out[m, 2] or (h[2] == out[m, 2] and h[3] < out[m, 3])):
-                out[m, 2] = h[2]
-                out[m, 3] = h[3]
-        else:
-            m += 1
-            out[m] = h
-    return out[:m + 1]
+def _sub_step_buffers(n_objects, n_world):
+    return SubStep(np.empty((n_objects, 3, 4)), np.empty((n_objects, 3, 4)),
+                   np.zeros((n_objects, MOTION_WIDTH)), np.empty((n_world, 3)), np.empty((n_world, 3)))
+
+
+@njit(cache=True)
+def _window(ps, rp0, rp1, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first,
+            tri_pairs):
+    """narrow.swept_contact_window of objects a and b over poses rp0 -> rp1 (N, 3, 4) with
+    world vertices world0, world1 and their n_leaves overlapping leaf pairs."""
+    return swept_contact_window(
+        leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+        ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
+        ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, find_first,
+        tri_pairs)
+
+
+@njit(cache=True)
+def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol,
+                     find_first, sub, pair, leaves, tri_pairs):
+    """Contact window of objects a and b over sub-step j of n_sub (fractions j / n_sub to
+    (j + 1) / n_sub of the step), a screw motion between their poses there. Returns
+    (leaves, tri_pairs, t_first, t_last, tri_a, tri_b), times as fractions of the
+    sub-step."""
+    t0 = j / n_sub
+    t1 = (j + 1) / n_sub
+    for o in (a, b):
+        pose_at(motion[o], rp0[o], rp1[o], t0, sub.pose0[o])
+        pose_at(motion[o], rp0[o], rp1[o], t1, sub.pose1[o])
+        screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # a small turn: never half
+    leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT, pair_margin, pair,
+                                   leaves)
+    if n_leaves == 0:
+        return leaves, tri_pairs, np.inf, -np.inf, -1, -1
+    for o in (a, b):
+        mesh = ps.object_mesh[o]
+        body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
+        to_world(body, sub.pose0[o], sub.world0, ps.world_start[o])
+        to_world(body, sub.pose1[o], sub.world1, ps.world_start[o])
+    tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, sub.pose0, sub.pose1, sub.motion, sub.world0,
+                                                       sub.world1, a, b, n_leaves, leaves, time_tol * n_sub,
+                                                       dist_tol, find_first, tri_pairs)
+    return leaves, tri_pairs, t_first, t_last, tri_a, tri_b
+
+
+@njit(cache=True)
+def _step_time(j, u, n_sub, upward):
+    """Fraction of the step at fraction u of sub-step j of n_sub, rounded down (up when
+    upward) unless exact."""
+    t = (j + u) / n_sub
+    if 0.0 < u < 1.0:
+        t = np.nextafter(t, np.inf) if upward else np.nextafter(t, -np.inf)
+    return min(max(t, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, sub,
+                        pair, leaves, tri_pairs):
+    """Contact window of objects a and b over the step, from its n_sub sub-steps: the first
+    sub-step with a contact gives t_first (and the touching pair), the last one t_last.
+    Returns (leaves, tri_pairs, t_first, t_last, tri_a, tri_b)."""
+    t_first = np.inf
+    t_last = -np.inf
+    pair_a = -1
+    pair_b = -1
+    j_first = n_sub
+    for j in range(n_sub):
+        leaves, tri_pairs, f, l, tri_a, tri_b = _sub_step_window(
+            ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, True, sub, pair,
+            leaves, tri_pairs)
+        if f < np.inf:
+            t_first = _step_time(j, f, n_sub, False)
+            t_last = _step_time(j, l, n_sub, True)
+            pair_a = tri_a
+            pair_b = tri_b
+            j_first = j
+            break
+    for j in range(n_sub - 1, j_first, -1):
+        leaves, tri_pairs, f, l, tri_a, tri_b = _sub_step_window(
+            ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, False, sub, pair,
+            leaves, tri_pairs)
+        if l > -np.inf:
+            t_last = _step_time(j, l, n_sub, True)
+            break
+    return leaves, tri_pairs, t_first, t_last, pair_a, pair_b
 
 
 @njit(cache=True, nogil=True)
-def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, time_tol, dist_tol):
+def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interpolation, time_tol,
+                   dist_tol):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
-    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,); time_tol in
-    units of the step; dist_tol in length units. Returns float64 (R, 7), see
-    the module docstring.
+    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,); interpolation:
+    a motion.INTERPOLATIONS code; time_tol in units of the step; dist_tol in length
+    units. Returns float64 (R, 7), see the module docstring.
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
@@ -91,13 +186,17 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, time_t
     rows = np.empty((16, 7))
     n_rows = 0
     leaves = np.empty((256, 2), np.int64)
-    hulls = np.empty((64, 4))
-    pose = np.empty((4, 3, 4))
+    tri_pairs = np.empty((64, 2), np.int64)  # scratch of swept_contact_window
+    pair = pair_scratch()
+    sub = _sub_step_buffers(n_objects, n_world)
+    motion = np.empty((n_objects, MOTION_WIDTH))
     row = np.empty(7)
     for k in range(step_start, step_stop):
         rp0 = poses[k]
         rp1 = poses[k + 1]
-        lo, hi = object_world_boxes(ps, rp0, rp1, dist_tol, margin)
+        object_margins(ps, rp0, rp1, margin)
+        step_motions(interpolation, rp0, rp1, margin, motion)
+        lo, hi = object_world_boxes(ps, rp0, rp1, motion, dist_tol, margin)
         candidates = sweep_and_prune(lo, hi)
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
@@ -105,25 +204,36 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, time_t
             if not pair_selected(pair_filter, static, a, b):
                 continue
             pair_margin = margin[a] + margin[b] + dist_tol
-            if not spheres_may_meet(ps, rp0, rp1, a, b, pair_margin):
+            if not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
                 continue
-            leaves, n_leaves = pair_leaves(ps, rp0, rp1, a, b, RULE_SWEPT, pair_margin, pose, leaves)
-            if n_leaves == 0:
+            mesh_a = ps.object_mesh[a]
+            mesh_b = ps.object_mesh[b]
+            n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre[mesh_a], rp0[a]),
+                             ps.sphere_radius[mesh_a], _world_centre(ps.centre[mesh_b], rp0[b]),
+                             ps.sphere_radius[mesh_b])
+            if n_sub > 1:
+                leaves, tri_pairs, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
+                    ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, sub, pair,
+                    leaves, tri_pairs)
+            else:
+                leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, RULE_SWEPT, pair_margin, pair,
+                                               leaves)
+                if n_leaves == 0:
+                    continue
+                for o in (a, b):
+                    ensure_world(ps, rp0, o, k, static, stamp0, world0)
+                    ensure_world(ps, rp1, o, k + 1, static, stamp1, world1)
+                tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, rp0, rp1, motion, world0, world1, a, b,
+                                                                   n_leaves, leaves, time_tol, dist_tol, True,
+                                                                   tri_pairs)
+            if t_first == np.inf:
                 continue
-            for o in (a, b):
-                ensure_world(ps, rp0, o, k, static, stamp0, world0)
-                ensure_world(ps, rp1, o, k + 1, static, stamp1, world1)
-            hulls, n_hulls = swept_contact_hulls(
-                leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
-                ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
-                ps.world_start[a], ps.world_start[b], time_tol, dist_tol, hulls, 0)
-            if n_hulls == 0:
-                continue
-            merged = merge_hulls(hulls, n_hulls)
-            for m in range(merged.shape[0]):
-                row[0] = k
-                row[1] = a
-                row[2] = b
-                row[3:] = merged[m]
-                rows, n_rows = append_row(rows, n_rows, row)
+            row[0] = k
+            row[1] = a
+            row[2] = b
+            row[3] = t_first
+            row[4] = t_last
+            row[5] = tri_a
+            row[6] = tri_b
+            rows, n_rows = append_row(rows, n_rows, row)
     return rows[:n_rows].copy()

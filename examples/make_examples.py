@@ -10,6 +10,10 @@ fixture/  parts moving through a fixture (the quick-start scene):
   arm       capsule turning about z (0.75 degrees per frame) that sweeps into the pillar and out
 tunnel/   a fast bullet through a thin wall between two frames (discrete mode misses it) and a
           ball passing 0.2 mm beside the wall's edge (a near miss).
+turning/  an arm swinging 40 degrees per frame about a vertical hub clips a post between two
+          frames: the post stands on the arc of the arm's tip but outside the straight paths
+          of its vertices, so --interpolation screw (the default) catches it and
+          linear-vertex does not.
 """
 from pathlib import Path
 
@@ -96,10 +100,28 @@ def tunnel_scene(folder):
     write_trajectory(folder / "traj.h5", time, ["bullet", "ball"], position, orientation)
 
 
+def turning_scene(folder):
+    meshes = folder / "meshes"
+    meshes.mkdir(parents=True, exist_ok=True)
+    arm = trimesh.creation.capsule(height=380, radius=15, count=(24, 24))
+    arm.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
+    arm.apply_translation((205, 0, 0))  # from the hub (body origin) to its tip at x = 410 mm
+    arm.export(meshes / "arm.stl")
+    post = trimesh.creation.cylinder(radius=4, height=200, sections=32)
+    post.apply_translation((402 * np.cos(np.radians(60)), 402 * np.sin(np.radians(60)), 0))
+    post.export(meshes / "post.stl")
+    n = 5
+    time = np.arange(n) * 0.04                     # 25 frames per second
+    angle = np.radians(40.0 * np.arange(n))        # 40 degrees per frame about the hub's z axis
+    orientation = quaternion_z(angle)[:, None, :]
+    write_trajectory(folder / "traj.h5", time, ["arm"], np.zeros((n, 1, 3)), orientation)
+
+
 if __name__ == "__main__":
     fixture_scene(HERE / "fixture")
     tunnel_scene(HERE / "tunnel")
-    for scene in ("fixture", "tunnel"):
+    turning_scene(HERE / "turning")
+    for scene in ("fixture", "tunnel", "turning"):
         for path in sorted((HERE / scene / "meshes").iterdir()):
             mesh = trimesh.load(path, process=False, force="mesh")
             print(f"{scene}/meshes/{path.name}: {len(mesh.faces)} triangles")

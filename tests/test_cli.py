@@ -173,16 +173,20 @@ def test_large_rotation_between_frames_warns_once(tmp_path):
     meshes.mkdir()
     write_box(meshes / "spinner.stl")
     write_box(meshes / "far.stl", centre=(50, 0, 0))
-    angle = np.radians([0.0, 5.0, 30.0, 35.0])          # 25 degrees between frames 1 and 2
+    angle = np.radians([0.0, 5.0, 130.0, 135.0])         # 125 degrees between frames 1 and 2
     q = np.zeros((4, 1, 4))
     q[:, 0, 0], q[:, 0, 3] = np.cos(angle / 2), np.sin(angle / 2)
     traj = write_trajectory(tmp_path / "t.h5", np.arange(4.0), ["spinner"], np.zeros((4, 1, 3)), q)
     proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5")
     assert proc.returncode == 0, proc.stderr
-    warnings = [line for line in proc.stderr.splitlines() if "turns by" in line]
-    assert len(warnings) == 1 and "'spinner'" in warnings[0] and "frames 1 and 2" in warnings[0]
+    warnings = [line for line in proc.stderr.splitlines() if "WARNING" in line]
+    assert len(warnings) == 1 and "'spinner' turns by 125.0 degrees between frames 1 and 2" in warnings[0]
+    proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--interpolation", "linear-vertex")
+    warnings = [line for line in proc.stderr.splitlines() if "WARNING" in line]
+    assert len(warnings) == 1 and "'spinner': between frames 1 and 2" in warnings[0], proc.stderr
+    assert "length units" in warnings[0]
     quiet = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete")
-    assert "turns by" not in quiet.stderr
+    assert "WARNING" not in quiet.stderr
 
 
 def test_slow_kernel_preparation_is_announced_once(caplog):

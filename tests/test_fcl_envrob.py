@@ -103,7 +103,10 @@ def test_contact_rows_do_not_depend_on_split_or_triangle_pairs(envrob):
     """Contacts name the smallest intersecting pair at their first frame, whether the scan
     enumerated every pair (--triangle-pairs) or stopped at the first one found."""
     meshes, traj, reference = envrob
-    runs = [collide.scan(meshes, traj, mode=mode, split=split, triangle_pairs=pairs).contacts
+    # consecutive poses are unrelated random draws: continuous steps between them are wild
+    # (turns near half a turn), so the continuous runs look at the first few only
+    runs = [collide.scan(meshes, traj, mode=mode, split=split, triangle_pairs=pairs,
+                         frames=None if mode == "discrete" else "0:6").contacts
             for mode in ("discrete", "continuous") for split in ("sah", "mean") for pairs in (True, False)]
     for run in runs[1:4]:
         assert all(np.array_equal(runs[0][k], run[k], equal_nan=True) for k in runs[0])

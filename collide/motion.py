@@ -1,0 +1,497 @@
+"""How objects move between two frames: the one place that knows (SPEC: ``--interpolation``).
+
+Between frames k and k+1 (a *step*, time fraction t in [0, 1]) each object moves in one
+of two ways:
+
+- ``linear-vertex``: every world-space vertex moves on the straight line (the *chord*)
+  from its position at frame k to its position at frame k+1. This is the motion of the
+  continuous-collision literature and of simulators that step vertices.
+- ``screw`` (the default): the object moves rigidly by the constant world-space twist
+  taking its pose at frame k to its pose at frame k+1, ``T(t) = exp(t log(T1 T0^-1)) T0``:
+  a rotation by ``t theta`` about a fixed axis (direction ``omega`` through a point
+  ``c``) combined with a translation ``t d`` along that axis. It is exact for a part
+  turning about a fixed joint and for pure translation, and does not depend on where
+  the body frame's origin is.
+
+Everything else in the engine sees a motion through the functions of this module: the
+world position at a fraction of a step (``points_at``), swept bounds of a body box
+(``swept_box``, ``box_deviation``), the deviation bound of a point
+(``point_deviation``), and the certified first/last contact of a triangle pair
+(``triangle_pair_contact``).
+
+Screw parameters of one step (a row of ``MOTION_WIDTH`` floats, all zero for
+linear-vertex motion and for pure translation, so those take exactly the linear code
+path): with ``dR = R1 R0^T`` and ``dp = p1 - dR p0`` (a world point x at t = 0 goes to
+``dR x + dp`` at t = 1), ``theta`` in [0, pi) and ``omega`` from ``dR``, ``d = omega . dp``
+and ``w = dp - d omega`` (the displacement across the axis). A world point x at t = 0
+then moves to
+
+    S(t, x) = Rot(omega, t theta) x + s(t) Rot(omega, (t - 1) theta / 2) w + t d omega,
+    s(t) = sin(t theta / 2) / sin(theta / 2)
+
+(the axis point c = w / 2 + cot(theta / 2) / 2 omega x w never appears, so the formula
+stays accurate for tiny angles). Pose matrices are only rigid to within the input
+tolerance, so S(1, x) may differ slightly from the frame's x1; the declared path adds
+the linear blend that closes the gap, ``x(t) = S(t, x) + t (x1 - S(1, x))``: it ends
+exactly at both frame positions, and being linear in t it changes nothing below.
+
+Deviation bound (why chords can stand in for arcs). The path x(t) is C^2 and its
+second derivative is that of the rotation: |x''(t)| = theta^2 rho, rho the point's
+distance from the screw axis (the same at every t). The chord L(t) through x(0) and
+x(1) is x's linear interpolant, and the interpolation error of a C^2 function obeys
+|x(t) - L(t)| <= t (1 - t) / 2 max |x''| <= rho theta^2 / 8 (for vectors too: the
+error is an integral of x'' against a non-negative kernel of mass t (1 - t) / 2). On
+a sub-step of length h the same argument gives rho theta^2 h^2 / 8. A point of a
+triangle is a fixed convex combination of its corners, and the motion is affine at
+each t, so at every t the screw-moved triangle lies within max over its corners of
+that bound (its *deviation*) of the chord-moved triangle. Hence two triangles that
+touch under the screw motion have chord triangles within dev_a + dev_b, and the
+certified linear CCD (ccd.py) run with its distance tolerance widened by that much
+misses no contact of the screw motion. ``theta rho`` is evaluated as
+``|theta x_perp - A|`` with ``A = theta c`` (both perpendicular to omega), and
+rounding in evaluating positions and bounds is covered by a margin ``eta`` per object
+(config.BOX_MARGIN_REL of the magnitudes involved: thousands of times the rounding
+error of the few dozen operations).
+
+Sub-step refinement (``_first_on_path``). A widened tolerance alone would report pairs
+that only come within dev_a + dev_b. So a sub-step [a, b] of the step is searched with
+the linear CCD at tolerance ``dist_tol / 2 + dev h^2 + eta`` (h = b - a, chords
+through the path's positions at a and b); no answer means no contact in [a, b]. An
+answer tau means no contact before tau; once ``dev h^2 <= dist_tol / 4`` the answer is
+final: never after the first contact, at most ``time_tol`` (of the step) before a time
+at which the screw-moved triangles are within dist_tol + 2 eta + the CCD's rounding
+bound. Otherwise [tau, b] is halved and searched, earlier half first. Only sub-steps
+that still report something are refined, and each level cuts dev h^2 by at least 4.
+The same search runs backwards in time for the last contact.
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from . import config
+from .ccd import triangle_pair_toi
+from .predicates import triangles_intersect
+
+#: interpolation name -> code used by the kernels
+INTERPOLATIONS = {"screw": 1, "linear-vertex": 0}
+LINEAR_VERTEX = 0
+SCREW = 1
+
+# one step's motion of one object: a row of MOTION_WIDTH floats (module docstring)
+M_THETA = 0   #: rotation angle, radians in [0, pi)
+M_AXIS = 1    #: rows 1-3: unit axis direction omega
+M_W = 4       #: rows 4-6: displacement across the axis (length units)
+M_D = 7       #: displacement along the axis (length units)
+M_A = 8       #: rows 8-10: theta times the axis point c (length units)
+M_ETA = 11    #: rounding margin of positions and bounds (length units)
+MOTION_WIDTH = 12
+
+#: an object pair's step is cut into at most this many sub-steps (``substeps``)
+MAX_PAIR_SUBSTEPS = 64
+#: sub-steps shorter than this (fraction of a step) are not split further
+MIN_SUBSTEP = 2.0 ** -40
+#: time tolerance (fraction of the sub-step) of the searches before the final one, whose
+#: answers only trim the sub-step: a coarse one ends the root finder's search early
+COARSE_TIME_TOL = 0.5
+#: a triangle-pair search splits at most this many sub-steps before giving its
+#: conservative answer (never reached in practice: each split cuts the bound by 4)
+MAX_SUBSTEPS = 4096
+
+
+# --- screw parameters -----------------------------------------------------------------------------
+
+@njit(cache=True)
+def screw_motion(rp0, rp1, eta, out):
+    """Fill out (MOTION_WIDTH,) with the screw taking pose rp0 to rp1 ((3, 4) [R | p] each).
+
+    eta: rounding margin of the object (length units), stored when the object turns.
+    Returns False when the rotation is a half turn within rounding (axis ambiguous),
+    True otherwise. A rotation of exactly zero leaves the row all zeros (pure
+    translation: the linear path).
+    """
+    out[:] = 0.0
+    dr = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            dr[i, j] = rp1[i, 0] * rp0[j, 0] + rp1[i, 1] * rp0[j, 1] + rp1[i, 2] * rp0[j, 2]
+    v0 = dr[2, 1] - dr[1, 2]
+    v1 = dr[0, 2] - dr[2, 0]
+    v2 = dr[1, 0] - dr[0, 1]
+    sin2 = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)  # 2 sin(theta)
+    cos2 = dr[0, 0] + dr[1, 1] + dr[2, 2] - 1.0     # 2 cos(theta)
+    if sin2 == 0.0 and cos2 > 0.0:
+        return True  # no rotation
+    if sin2 <= config.SCREW_HALF_TURN_SIN * 2.0 and cos2 < 0.0:
+        return False
+    theta = math.atan2(sin2, cos2)
+    if cos2 >= 0.0:
+        w0, w1, w2 = v0 / sin2, v1 / sin2, v2 / sin2
+    else:  # near a half turn: the axis from the symmetric part, oriented by v
+        cos_t = 0.5 * cos2
+        k = 0
+        for i in range(1, 3):
+            if dr[i, i] > dr[k, k]:
+                k = i
+        s0 = 0.5 * (dr[0, k] + dr[k, 0]) - (cos_t if k == 0 else 0.0)
+        s1 = 0.5 * (dr[1, k] + dr[k, 1]) - (cos_t if k == 1 else 0.0)
+        s2 = 0.5 * (dr[2, k] + dr[k, 2]) - (cos_t if k == 2 else 0.0)
+        norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        if s0 * v0 + s1 * v1 + s2 * v2 < 0.0:
+            norm = -norm
+        w0, w1, w2 = s0 / norm, s1 / norm, s2 / norm
+    # dp = p1 - dR p0, split along and across the axis
+    dp = np.empty(3)
+    for i in range(3):
+        dp[i] = rp1[i, 3] - (dr[i, 0] * rp0[0, 3] + dr[i, 1] * rp0[1, 3] + dr[i, 2] * rp0[2, 3])
+    d = w0 * dp[0] + w1 * dp[1] + w2 * dp[2]
+    out[M_THETA] = theta
+    out[M_AXIS], out[M_AXIS + 1], out[M_AXIS + 2] = w0, w1, w2
+    for i in range(3):
+        out[M_W + i] = dp[i] - d * out[M_AXIS + i]
+    out[M_D] = d
+    # A = theta c = theta w / 2 + (theta cot(theta / 2) / 2) omega x w
+    half_cot = 0.5 * theta * math.cos(0.5 * theta) / math.sin(0.5 * theta)
+    x0, x1, x2 = out[M_W], out[M_W + 1], out[M_W + 2]
+    out[M_A] = 0.5 * theta * x0 + half_cot * (w1 * x2 - w2 * x1)
+    out[M_A + 1] = 0.5 * theta * x1 + half_cot * (w2 * x0 - w0 * x2)
+    out[M_A + 2] = 0.5 * theta * x2 + half_cot * (w0 * x1 - w1 * x0)
+    out[M_ETA] = eta + config.BOX_MARGIN_REL * (abs(x0) + abs(x1) + abs(x2) + abs(d))
+    return True
+
+
+@njit(cache=True)
+def step_motions(interpolation, rp0, rp1, margins, out):
+    """Motion rows out (N, MOTION_WIDTH) of N objects from poses rp0 to rp1 (N, 3, 4).
+
+    margins (N,): each object's rounding margin (length units). Returns the index of
+    an object whose screw is ambiguous (a half turn), or -1. Linear-vertex motion:
+    all rows zero.
+    """
+    out[:] = 0.0
+    bad = -1
+    if interpolation == LINEAR_VERTEX:
+        return bad
+    for o in range(rp0.shape[0]):
+        if not screw_motion(rp0[o], rp1[o], margins[o], out[o]) and bad < 0:
+            bad = o
+    return bad
+
+
+@njit(cache=True)
+def motion_summary(poses, centres, radii, out):
+    """Per step k and object o of poses (T, N, 3, 4): out[k, o, 0] the screw's rotation
+    angle (radians; -1 for an ambiguous half turn) and out[k, o, 1] the largest
+    distance between any point's chord and its screw path (length units; a bound from
+    the object's bounding sphere: body centres (N, 3), radii (N,)). out: (T-1, N, 2)."""
+    row = np.empty(MOTION_WIDTH)
+    c = np.empty(3)
+    for k in range(poses.shape[0] - 1):
+        for o in range(poses.shape[1]):
+            rp0 = poses[k, o]
+            if not screw_motion(rp0, poses[k + 1, o], 0.0, row):
+                out[k, o, 0] = -1.0
+                out[k, o, 1] = np.inf
+                continue
+            for i in range(3):
+                c[i] = rp0[i, 3] + rp0[i, 0] * centres[o, 0] + rp0[i, 1] * centres[o, 1] \
+                    + rp0[i, 2] * centres[o, 2]
+            out[k, o, 0] = row[M_THETA]
+            out[k, o, 1] = _bound(row, _theta_rho(row, c[0], c[1], c[2]) + row[M_THETA] * radii[o])
+
+
+# --- positions --------------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _rotate(m, x0, x1, x2, phi):
+    """Rot(omega, phi) applied to (x0, x1, x2), omega = m[M_AXIS:M_AXIS + 3] (Rodrigues)."""
+    w0 = m[M_AXIS]
+    w1 = m[M_AXIS + 1]
+    w2 = m[M_AXIS + 2]
+    c = math.cos(phi)
+    s = math.sin(phi)
+    h = math.sin(0.5 * phi)
+    one_minus_c = 2.0 * h * h
+    dot = (w0 * x0 + w1 * x1 + w2 * x2) * one_minus_c
+    return (x0 * c + (w1 * x2 - w2 * x1) * s + w0 * dot,
+            x1 * c + (w2 * x0 - w0 * x2) * s + w1 * dot,
+            x2 * c + (w0 * x1 - w1 * x0) * s + w2 * dot)
+
+
+@njit(cache=True, inline="always")
+def _screw_point(m, x0, x1, x2, t):
+    """S(t, x) of the module docstring for the world point (x0, x1, x2) at t = 0."""
+    theta = m[M_THETA]
+    r0, r1, r2 = _rotate(m, x0, x1, x2, t * theta)
+    s = math.sin(0.5 * t * theta) / math.sin(0.5 * theta)
+    u0, u1, u2 = _rotate(m, m[M_W], m[M_W + 1], m[M_W + 2], 0.5 * (t - 1.0) * theta)
+    d = t * m[M_D]
+    return (r0 + s * u0 + d * m[M_AXIS], r1 + s * u1 + d * m[M_AXIS + 1],
+            r2 + s * u2 + d * m[M_AXIS + 2])
+
+
+@njit(cache=True)
+def points_at(m, x_t0, x_t1, t, out):
+    """World positions out (n, 3) at fraction t of the step of points at x_t0 (t = 0)
+    and x_t1 (t = 1) (each (n, 3)), under the motion row m. Exact at t = 0 and 1."""
+    for i in range(x_t0.shape[0]):
+        if t == 0.0 or t == 1.0:
+            src = x_t0 if t == 0.0 else x_t1
+            for c in range(3):
+                out[i, c] = src[i, c]
+        elif m[M_THETA] == 0.0:  # the chord
+            for c in range(3):
+                out[i, c] = x_t0[i, c] + t * (x_t1[i, c] - x_t0[i, c])
+        else:  # x(t) = S(t, x0) + t (x1 - S(1, x0))
+            a0, a1, a2 = _screw_point(m, x_t0[i, 0], x_t0[i, 1], x_t0[i, 2], t)
+            e0, e1, e2 = _screw_point(m, x_t0[i, 0], x_t0[i, 1], x_t0[i, 2], 1.0)
+            out[i, 0] = a0 + t * (x_t1[i, 0] - e0)
+            out[i, 1] = a1 + t * (x_t1[i, 1] - e1)
+            out[i, 2] = a2 + t * (x_t1[i, 2] - e2)
+
+
+@njit(cache=True)
+def pose_at(m, rp0, rp1, t, out):
+    """The affine map out (3, 4) [A | b] taking body points to their world positions at
+    fraction t of the step from pose rp0 to rp1 ((3, 4) each) under motion row m:
+    A b + p equals points_at's position of every body point. Exact at t = 0 and 1;
+    rigid up to the input's own departure from rigidity."""
+    if t == 0.0 or t == 1.0:
+        out[:, :] = rp0 if t == 0.0 else rp1
+        return
+    if m[M_THETA] == 0.0:
+        for i in range(3):
+            for j in range(4):
+                out[i, j] = rp0[i, j] + t * (rp1[i, j] - rp0[i, j])
+        return
+    # x(t) = Rot(t theta) x0 + c(t) + t (x1 - Rot(theta) x0 - c(1)), x0 = R0 b + p0, x1 = R1 b + p1
+    for j in range(3):  # columns of R(t): Rot(t theta) R0 + t (R1 - Rot(theta) R0)
+        a0, a1, a2 = _rotate(m, rp0[0, j], rp0[1, j], rp0[2, j], t * m[M_THETA])
+        e0, e1, e2 = _rotate(m, rp0[0, j], rp0[1, j], rp0[2, j], m[M_THETA])
+        out[0, j] = a0 + t * (rp1[0, j] - e0)
+        out[1, j] = a1 + t * (rp1[1, j] - e1)
+        out[2, j] = a2 + t * (rp1[2, j] - e2)
+    a0, a1, a2 = _screw_point(m, rp0[0, 3], rp0[1, 3], rp0[2, 3], t)
+    e0, e1, e2 = _screw_point(m, rp0[0, 3], rp0[1, 3], rp0[2, 3], 1.0)
+    out[0, 3] = a0 + t * (rp1[0, 3] - e0)
+    out[1, 3] = a1 + t * (rp1[1, 3] - e1)
+    out[2, 3] = a2 + t * (rp1[2, 3] - e2)
+
+
+@njit(cache=True)
+def substeps(m_a, m_b, centre_a, radius_a, centre_b, radius_b):
+    """Number of equal sub-steps (a power of 2, at most MAX_PAIR_SUBSTEPS) into which a pair of
+    objects' step is cut so that, on each, the two objects' paths stay within
+    config.SUBSTEP_DEVIATION_REL of the pair's size of their chords: then boxes bounding a
+    sub-step's motion are tight and few triangle pairs come near enough to need a search.
+    centre_*: world centres (3,) at t = 0 of the objects' bounding spheres, radius_* their
+    radii. 1 for linear-vertex motion and for slow turns."""
+    dev = 0.0
+    for m, c, r in ((m_a, centre_a, radius_a), (m_b, centre_b, radius_b)):
+        if m[M_THETA] > 0.0:
+            dev += _bound(m, _theta_rho(m, c[0], c[1], c[2]) + m[M_THETA] * r)
+    target = config.SUBSTEP_DEVIATION_REL * 2.0 * (radius_a + radius_b)
+    n = 1
+    while dev > target * n * n and n < MAX_PAIR_SUBSTEPS:
+        n *= 2
+    return n
+
+
+# --- deviation bounds -----------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _theta_rho(m, x0, x1, x2):
+    """theta times the distance of the world point (x0, x1, x2) from the screw axis."""
+    theta = m[M_THETA]
+    along = m[M_AXIS] * x0 + m[M_AXIS + 1] * x1 + m[M_AXIS + 2] * x2
+    g0 = theta * (x0 - along * m[M_AXIS]) - m[M_A]
+    g1 = theta * (x1 - along * m[M_AXIS + 1]) - m[M_A + 1]
+    g2 = theta * (x2 - along * m[M_AXIS + 2]) - m[M_A + 2]
+    return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+
+
+@njit(cache=True, inline="always")
+def _bound(m, theta_rho):
+    """theta^2 rho / 8 from theta rho, rounded up (a relative 2^-40 covers its rounding)."""
+    return 0.125 * m[M_THETA] * theta_rho * (1.0 + 2.0 ** -40)
+
+
+@njit(cache=True)
+def point_deviation(m, points):
+    """Largest distance (length units) between the path of any of the points (n, 3)
+    (world positions at t = 0) and its chord over the whole step: rho theta^2 / 8.
+    Excludes the rounding margin m[M_ETA]. 0 for linear-vertex motion."""
+    if m[M_THETA] == 0.0:
+        return 0.0
+    worst = 0.0
+    for i in range(points.shape[0]):
+        worst = max(worst, _theta_rho(m, points[i, 0], points[i, 1], points[i, 2]))
+    return _bound(m, worst)
+
+
+@njit(cache=True)
+def sphere_deviation(m, centre):
+    """Deviation bound of the path of a world point centre (3,) at t = 0 (no margin)."""
+    if m[M_THETA] == 0.0:
+        return 0.0
+    return _bound(m, _theta_rho(m, centre[0], centre[1], centre[2]))
+
+
+@njit(cache=True)
+def box_deviation(m, lo, hi, rp0):
+    """Deviation bound (length units) of any point of the body box [lo, hi] (3,) placed
+    by pose rp0 (3, 4) at t = 0, plus the rounding margin; 0 for linear motion."""
+    if m[M_THETA] == 0.0:
+        return 0.0
+    c = np.empty(3)
+    half = 0.0
+    for i in range(3):
+        half += (0.5 * (hi[i] - lo[i])) ** 2
+    for i in range(3):
+        c[i] = rp0[i, 3] + rp0[i, 0] * (0.5 * (lo[0] + hi[0])) + rp0[i, 1] * (0.5 * (lo[1] + hi[1])) \
+            + rp0[i, 2] * (0.5 * (lo[2] + hi[2]))
+    theta_rho = _theta_rho(m, c[0], c[1], c[2]) + m[M_THETA] * math.sqrt(half)
+    return _bound(m, theta_rho) + m[M_ETA]
+
+
+# --- swept bounds ---------------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def world_interval(lo, hi, rp, i):
+    """Range of world coordinate i over the body box [lo, hi] (3,) under rp = [R | p] (3, 4)."""
+    c = rp[i, 3]
+    e = 0.0
+    for j in range(3):
+        c += rp[i, j] * (0.5 * (lo[j] + hi[j]))
+        e += abs(rp[i, j]) * (0.5 * (hi[j] - lo[j]))
+    return c - e, c + e
+
+
+@njit(cache=True, inline="always")
+def chord_interval(lo, hi, rp0, rp1, i):
+    """World coordinate i's range of body box [lo, hi] at both poses rp0, rp1: it holds
+    the box's chords (each point's straight path between the two poses)."""
+    lo0, hi0 = world_interval(lo, hi, rp0, i)
+    lo1, hi1 = world_interval(lo, hi, rp1, i)
+    return min(lo0, lo1), max(hi0, hi1)
+
+
+@njit(cache=True)
+def swept_box(lo, hi, rp0, rp1, m):
+    """World AABB (lo (3,), hi (3,)) of the body box [lo, hi] over the step from pose rp0
+    to rp1 ((3, 4) each) under motion row m: its chord box widened by its deviation.
+    Pass the same pose twice (and a zero row) for a still box."""
+    dev = box_deviation(m, lo, hi, rp0)
+    w_lo = np.empty(3)
+    w_hi = np.empty(3)
+    for i in range(3):
+        a, b = chord_interval(lo, hi, rp0, rp1, i)
+        w_lo[i] = a - dev
+        w_hi[i] = b + dev
+    return w_lo, w_hi
+
+
+# --- triangle pairs: certified first and last contact ---------------------------------------------
+
+@njit(cache=True)
+def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work):
+    """Conservative first contact time in [0, 1] of triangles p and q over one step, or
+    (backwards) their last contact time; inf (backwards: -inf) if they never touch.
+
+    Only contacts up to ``limit`` (backwards: from ``limit`` on) are looked for: an
+    answer beyond it may come back as inf (-inf), never as a value on the wrong side
+    of the true one. p0, p1, q0, q1: (3, 3) world corners at t = 0 and t = 1; m_p,
+    m_q their motion rows; dev: the sum of both triangles' deviation bounds over the
+    whole step (length units, point_deviation), eta the sum of their rounding margins.
+    time_tol: fraction of the step; dist_tol: length units. work: (2, 4, 3) scratch.
+    With dev == 0 and eta == 0 (linear-vertex motion or pure translation) this is one
+    linear CCD of the step.
+    """
+    if dev == 0.0 and eta == 0.0:
+        x0 = work[0]
+        x1 = work[1]
+        if backwards:
+            return 1.0 - triangle_pair_toi(p1, p0, q1, q0, time_tol, dist_tol, 1.0 - limit, x0, x1)
+        return triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, limit, x0, x1)
+    t = _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work)
+    return -np.inf if backwards and t == np.inf else t
+
+
+@njit(cache=True, inline="always")
+def _boxes_overlap(pa, pb, qa, qb, margin):
+    """The boxes of p's corners at both ends of a sub-step (pa, pb) and of q's (qa, qb),
+    widened by margin, overlap: a necessary condition for the chords to come within
+    margin (each corner's chord lies in that box)."""
+    for c in range(3):
+        p_lo = min(pa[0, c], pa[1, c], pa[2, c], pb[0, c], pb[1, c], pb[2, c])
+        p_hi = max(pa[0, c], pa[1, c], pa[2, c], pb[0, c], pb[1, c], pb[2, c])
+        q_lo = min(qa[0, c], qa[1, c], qa[2, c], qb[0, c], qb[1, c], qb[2, c])
+        q_hi = max(qa[0, c], qa[1, c], qa[2, c], qb[0, c], qb[1, c], qb[2, c])
+        if p_hi + margin < q_lo or q_hi + margin < p_lo:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work):
+    """The sub-step refinement of the module docstring. Forwards: earliest contact up to
+    limit; backwards: latest contact from limit on (the same search with time running
+    from 1 to 0). inf when none."""
+    pa = np.empty((3, 3))
+    qa = np.empty((3, 3))
+    pb = np.empty((3, 3))
+    qb = np.empty((3, 3))
+    x0 = work[0]
+    x1 = work[1]
+    stack = np.empty((128, 2))  # sub-steps [a, b] still to search; the top one comes first in time
+    stack[0, 0] = 0.0
+    stack[0, 1] = 1.0
+    n = 1
+    splits = 0
+    while n > 0:
+        n -= 1
+        a = stack[n, 0]
+        b = stack[n, 1]
+        if (b < limit) if backwards else (a > limit):
+            continue
+        h = b - a
+        points_at(m_p, p0, p1, a, pa)
+        points_at(m_q, q0, q1, a, qa)
+        points_at(m_p, p0, p1, b, pb)
+        points_at(m_q, q0, q1, b, qb)
+        if triangles_intersect(pb, qb) if backwards else triangles_intersect(pa, qa):
+            return b if backwards else a  # touching where the sub-step starts: no search needed
+        sub_dev = dev * h * h
+        tol = 0.5 * dist_tol + sub_dev + eta
+        if not _boxes_overlap(pa, pb, qa, qb, tol):
+            continue
+        final = sub_dev <= 0.25 * dist_tol or h <= MIN_SUBSTEP or splits >= MAX_SUBSTEPS or n + 2 > 128
+        # only the final answer needs time_tol; before that any lower bound trims the sub-step
+        sub_time_tol = time_tol / max(h, MIN_SUBSTEP) if final else COARSE_TIME_TOL
+        # the limit in units of the sub-step, rounded outward
+        sub_limit = ((b - limit) if backwards else (limit - a)) / max(h, MIN_SUBSTEP) * (1.0 + 2.0 ** -50)
+        if backwards:
+            tau = triangle_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, x0, x1)
+        else:
+            tau = triangle_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, x0, x1)
+        if tau == np.inf:
+            continue
+        # no contact in [a, t) (forwards) or (t, b] (backwards); t rounded outward
+        if backwards:
+            t = min(np.nextafter(b - tau * h, np.inf), b) if tau > 0.0 else b
+        else:
+            t = max(np.nextafter(a + tau * h, -np.inf), a) if tau > 0.0 else a
+        if final:
+            return t
+        splits += 1
+        # search what is left, [t, b] (backwards: [a, t]), in two halves, the earlier in time first
+        if backwards:
+            mid = a + 0.5 * (t - a)
+            stack[n, 0], stack[n, 1] = a, mid
+            stack[n + 1, 0], stack[n + 1, 1] = mid, t
+        else:
+            mid = t + 0.5 * (b - t)
+            stack[n, 0], stack[n, 1] = mid, b
+            stack[n + 1, 0], stack[n + 1, 1] = t, mid
+        n += 2
+    return np.inf

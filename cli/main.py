@@ -314,7 +314,8 @@ def plot(contacts, output, title, max_pairs):
 @click.option("--meshes-out", required=True, type=click.Path(),
               help="Folder to create with one mesh per link that has geometry, in the link frame: "
                    "binary PLY with float64 vertices, named after the link.")
-@click.option("--geometry", type=click.Choice(["collision", "visual"]), default="collision", show_default=True,
+@click.option("--geometry", type=click.Choice(["collision", "visual"]), default="collision",
+              show_default=True,
               help="Which elements make a link's mesh; a link with none of them uses the other kind.")
 @click.option("--ignore-adjacent/--no-ignore-adjacent", default=True, show_default=True,
               help="Write the link pairs joined by a joint to filters/ignore (links without geometry "

@@ -125,9 +125,10 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
         with atomic_path(trajectory_out) as tmp:
             write_trajectory(tmp, motion, links, stems, poses, ignore,
                              {"robot": robot.name, "urdf": str(urdf_path), "geometry": geometry})
-        mesh_files = _place_meshes(staged, Path(meshes_out))
+        _place_meshes(staged, Path(meshes_out))
     finally:
         shutil.rmtree(staged, ignore_errors=True)
+    mesh_files = [Path(meshes_out) / f"{stem}{MESH_SUFFIX}" for stem in stems]
     return UrdfScene(robot.name, links, mesh_files, int(motion.time.shape[0]), ignore or [], at_zero,
                      fallback)
 
@@ -489,7 +490,8 @@ def link_meshes(robot, urdf_path, geometry="collision"):
         parts = [_element_mesh(e, resolve, path, f"link {link.name!r} <{kind}>") for e in elements]
         meshes[link.name] = _merge(parts)
     if not meshes:
-        raise InputError(path, "no link has <collision> or <visual> geometry", "at least one link with geometry")
+        raise InputError(path, "no link has <collision> or <visual> geometry",
+                         "at least one link with geometry")
     if fallback:
         other_kind = other[:-1]
         log.warning("%s: links without <%s> geometry use their <%s> geometry: %s", path, geometry,
@@ -704,7 +706,7 @@ def _stage_meshes(folder, meshes):
 def _place_meshes(staged, folder):
     """Rename the staged folder to ``folder`` (an empty ``folder`` is replaced); into an
     existing non-empty folder, move the files one by one (same names replaced, other
-    files kept, with a warning naming the other mesh files). Returns the mesh paths."""
+    files kept, with a warning naming the other mesh files)."""
     names = sorted(p.name for p in staged.iterdir())
     try:
         if folder.is_dir() and not any(folder.iterdir()):
@@ -717,7 +719,6 @@ def _place_meshes(staged, folder):
             _warn_other_meshes(folder, set(names))
     except OSError as exc:
         raise InputError(folder, f"cannot place the meshes ({exc.strerror})", "a writable folder") from None
-    return [folder / name for name in names]
 
 
 def _warn_other_meshes(folder, ours):
@@ -727,5 +728,6 @@ def _warn_other_meshes(folder, ours):
                     if p.is_file() and p.suffix.lower() in suffixes and p.name not in ours
                     and not p.name.startswith("."))
     if others:
+        listed = ", ".join(others[:5]) + (", ..." if len(others) > 5 else "")
         log.warning("%s also holds %d other mesh files (%s): collide scan reads them as static "
-                    "objects", folder, len(others), ", ".join(others[:5]) + (", ..." if len(others) > 5 else ""))
+                    "objects", folder, len(others), listed)

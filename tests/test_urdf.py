@@ -115,7 +115,8 @@ def joint_values(n_frames=5, seed=7):
 def write_csv(path, time, values):
     names = list(values)
     rows = [",".join(["time"] + names)]
-    rows += [",".join(repr(float(x)) for x in [time[t]] + [values[n][t] for n in names]) for t in range(len(time))]
+    for t in range(len(time)):
+        rows.append(",".join(repr(float(x)) for x in [time[t]] + [values[n][t] for n in names]))
     path.write_text("\n".join(rows) + "\n")
     return path
 
@@ -293,7 +294,9 @@ def test_api_with_in_memory_joints(robot, tmp_path):
     scene = urdf_to_scene(robot, dict(values, time=time), tmp_path / "m", tmp_path / "traj.h5")
     assert scene.robot == "testbot" and scene.objects == WITH_GEOMETRY and scene.frames == 3
     assert scene.ignore == ADJACENT and scene.joints_at_zero == [] and scene.fallback_links == ["spinner"]
-    assert [p.name for p in scene.mesh_files] == sorted(p.name for p in (tmp_path / "m").iterdir())
+    assert [p.name for p in scene.mesh_files] == [
+        "base.ply", "shoulder.ply", "slider.ply", "spinner.ply", "tool_1_.ply", "finger.ply"]
+    assert all(p.is_file() for p in scene.mesh_files) and len(list((tmp_path / "m").iterdir())) == 6
     check_against_reference(tmp_path / "m", tmp_path / "traj.h5", values, robot.parent)
 
 
@@ -331,7 +334,8 @@ def test_glob_escape():
         assert fnmatch.fnmatchcase(name, pattern)
         assert not fnmatch.fnmatchcase(name + "x", pattern) and not fnmatch.fnmatchcase("y" + name, pattern)
     assert glob_escape("tool[1]") == "tool[[]1]" and glob_escape("a*?") == "a[*][?]"
-    assert not fnmatch.fnmatchcase("ab", glob_escape("a*")) and not fnmatch.fnmatchcase("x1", glob_escape("x?"))
+    assert not fnmatch.fnmatchcase("ab", glob_escape("a*"))
+    assert not fnmatch.fnmatchcase("x1", glob_escape("x?"))
 
 
 def test_scan_end_to_end(robot, tmp_path):
@@ -341,7 +345,8 @@ def test_scan_end_to_end(robot, tmp_path):
     time = np.arange(4) * 0.1
     joints = write_csv(tmp_path / "j.csv", time, values)
     for flag, name in (("--ignore-adjacent", "a"), ("--no-ignore-adjacent", "b")):
-        proc = run_cli("urdf", robot, joints, "-o", tmp_path / f"{name}.h5", "--meshes-out", tmp_path / name, flag)
+        proc = run_cli("urdf", robot, joints, "-o", tmp_path / f"{name}.h5", "--meshes-out", tmp_path / name,
+                       flag)
         assert proc.returncode == 0, proc.stderr
         proc = run_cli("scan", tmp_path / name, tmp_path / f"{name}.h5", "--mode", "discrete",
                        "-o", tmp_path / f"contacts_{name}.h5")
@@ -451,7 +456,8 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(case, robot, tmp_path):
 
 def test_bad_in_memory_joints_raise_input_error(robot, tmp_path):
     with pytest.raises(InputError, match=r"<joints>:time: not strictly increasing at index 2"):
-        urdf_to_scene(robot, {"time": [0.0, 1.0, 1.0], "j_spin": [0, 0, 0]}, tmp_path / "m", tmp_path / "t.h5")
+        urdf_to_scene(robot, {"time": [0.0, 1.0, 1.0], "j_spin": [0, 0, 0]}, tmp_path / "m",
+                      tmp_path / "t.h5")
     with pytest.raises(InputError, match=r"<joints>:j_spin: has 2 values, time 3"):
         urdf_to_scene(robot, {"time": [0.0, 1.0, 2.0], "j_spin": [0, 0]}, tmp_path / "m", tmp_path / "t.h5")
     assert not (tmp_path / "m").exists() and not (tmp_path / "t.h5").exists()

@@ -312,6 +312,44 @@ def plot(contacts, output, title, max_pairs):
     click.echo(f"wrote {output}")
 
 
+# --- collide urdf: robot + joint positions -> meshes folder + trajectory -----------------------
+
+@cli.command()
+@click.argument("robot", type=click.Path(path_type=str))
+@click.argument("joints", type=click.Path(path_type=str))
+@click.option("-o", "--output", required=True, type=click.Path(),
+              help="Trajectory to write (HDF5: the links' world poses as poses/matrix, root link at "
+                   "the identity; replaced only by a complete new file).")
+@click.option("--meshes-out", required=True, type=click.Path(),
+              help="Folder to create with one mesh per link that has geometry, in the link frame: "
+                   "binary PLY with float64 vertices, named after the link.")
+@click.option("--geometry", type=click.Choice(["collision", "visual"]), default="collision",
+              show_default=True,
+              help="Which elements make a link's mesh; a link with none of them uses the other kind.")
+@click.option("--ignore-adjacent/--no-ignore-adjacent", default=True, show_default=True,
+              help="Write the link pairs joined by a joint to filters/ignore (links without geometry "
+                   "are skipped over).")
+@click.option("--force", is_flag=True,
+              help="Write into a non-empty --meshes-out (files of the same name are replaced, others kept).")
+@verbosity_options
+def urdf(robot, joints, output, meshes_out, geometry, ignore_adjacent, force):
+    """Turn a URDF ROBOT and its JOINTS positions over time into a meshes folder and a
+    trajectory for collide scan.
+
+    \b
+    JOINTS is an HDF5 file (time (T,), joints/name str (J,), joints/position (T, J))
+    or a CSV file with a header: a time column and one column per joint.
+    Positions are radians (revolute, continuous) or URDF lengths (prismatic); joints
+    not listed stay at 0; mimic joints follow their leader. Needs pip install 'collide[urdf]'.
+    """
+    from collide.urdf import urdf_to_scene
+    scene = urdf_to_scene(robot, joints, meshes_out, output, geometry=geometry,
+                          ignore_adjacent=ignore_adjacent, force=force)
+    ignored = f", {len(scene.ignore)} adjacent link pairs in filters/ignore" if ignore_adjacent else ""
+    click.echo(f"robot {scene.robot!r}: {len(scene.objects)} link meshes -> {meshes_out}, "
+               f"{scene.frames} frames -> {output}{ignored}")
+
+
 # --- entry point ------------------------------------------------------------------------------
 
 def main(argv=None):

@@ -3,10 +3,11 @@ contact intervals as bars over time, swept-only contacts hatched, frame ticks.
 
 matplotlib is optional (``pip install collide[plot]``); it is imported only here.
 """
+import io
 from pathlib import Path
 
 from .errors import UsageError
-from .output import atomic_path
+from .output import write_bytes_atomic
 from .report import timeline
 
 FRAME_COLOUR = "#1f77b4"
@@ -25,8 +26,9 @@ def _pyplot():
     return plt
 
 
-def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
-    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically).
+def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS, inputs=()):
+    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically;
+    never over one of ``inputs``, e.g. the contacts file itself).
 
     One row per object pair; with more than ``max_pairs`` pairs only the
     ``max_pairs`` that touch first are drawn (the title says so).
@@ -72,7 +74,8 @@ def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
               loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     output = Path(output)
-    with atomic_path(output) as tmp:
-        fig.savefig(tmp, format="png")
+    png = io.BytesIO()
+    fig.savefig(png, format="png")
     plt.close(fig)
+    write_bytes_atomic(output, png.getbuffer(), inputs)
     return output

@@ -13,7 +13,8 @@ import sys
 def _stop_quietly(signum, frame):
     """A stop signal while nothing needs cleaning up (modules still loading, or the
     work is done): say so and end at once, without a traceback."""
-    os.write(2, b"collide: interrupted\n")
+    message = "interrupted" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+    os.write(2, f"collide: {message}\n".encode())
     os._exit(128 + signum)
 
 

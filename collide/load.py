@@ -172,8 +172,7 @@ def load_mesh(path):
     if not np.isfinite(vertices).all():
         bad = int((~np.isfinite(vertices)).any(axis=1).sum())
         raise InputError(path, f"{bad} vertices are NaN or infinite", "finite vertex coordinates")
-    with np.errstate(all="ignore"):
-        largest = float(np.linalg.norm(vertices, axis=1).max()) if vertices.size else 0.0
+    largest = float(lengths(vertices).max(initial=0.0))
     if not largest <= config.MAX_COORDINATE:
         raise InputError(path, f"a vertex lies {largest:.3g} from the origin",
                          f"vertices within {config.MAX_COORDINATE:g} of the origin")
@@ -348,10 +347,19 @@ def _pose_datasets(src, n_frames, n_objects):
                      dataset="poses")
 
 
+def lengths(vectors):
+    """Euclidean lengths of float64 (..., 3) vectors -> (...,), without overflow for any
+    finite input (scaled by the largest coordinate first)."""
+    scale = np.abs(vectors).max(axis=-1, initial=0.0)
+    safe = np.where(scale > 0, scale, 1.0)
+    with np.errstate(all="ignore"):
+        return scale * np.sqrt(((vectors / safe[..., None]) ** 2).sum(axis=-1))
+
+
 def _check_positions(src, position, dataset):
     """Refuse positions (T, N, 3) farther than config.MAX_COORDINATE from the origin
     (world coordinates that large overflow the exact tests)."""
-    magnitude = np.linalg.norm(position, axis=-1)
+    magnitude = lengths(position)
     if magnitude.size and not magnitude.max() <= config.MAX_COORDINATE:
         t, o = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
         raise InputError(src.path, f"position at frame {t}, object {o} lies {magnitude[t, o]:.3g} from the "
@@ -486,13 +494,13 @@ def input_files(meshes_folder, trajectory_path):
 def _check_reach(scene_names, meshes, object_mesh, poses, path, dataset):
     """Refuse a scene where |position| + |vertex| of some object at some frame exceeds
     config.MAX_COORDINATE (world coordinates up to that size cannot overflow)."""
-    radius = np.array([float(np.linalg.norm(m.vertices, axis=1).max()) for m in meshes])[object_mesh]
-    with np.errstate(all="ignore"):
-        reach = np.linalg.norm(poses[..., 3], axis=-1) + radius[None, :]      # (T, N)
+    radius = np.array([float(lengths(m.vertices).max(initial=0.0)) for m in meshes])[object_mesh]
+    distance = lengths(poses[..., 3])                                        # (T, N)
+    reach = distance + radius[None, :]
     if reach.size and not reach.max() <= config.MAX_COORDINATE:
-        t, o = np.unravel_index(int(np.argmax(np.nan_to_num(reach, nan=np.inf))), reach.shape)
+        t, o = np.unravel_index(int(np.argmax(reach)), reach.shape)
         raise InputError(path, f"object {scene_names[o]!r} at frame {t} reaches {reach[t, o]:.3g} from the "
-                         f"origin (|position| {np.linalg.norm(poses[t, o, :, 3]):.3g} + mesh radius "
+                         f"origin (|position| {distance[t, o]:.3g} + mesh radius "
                          f"{radius[o]:.3g})", f"world coordinates of magnitude at most {config.MAX_COORDINATE:g}",
                          dataset=dataset)
 

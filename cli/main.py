@@ -449,7 +449,7 @@ def plot(contacts, output, title, max_pairs, max_memory):
     from collide.plot import plot_timeline
     check_output_path(output, [contacts])  # never over the file being drawn
     plot_timeline(collide.read_contacts(contacts, max_memory=max_memory), output, title, max_pairs,
-                  inputs=[contacts])
+                  inputs=[contacts], source=contacts)
     click.echo(f"wrote {output}")
 
 

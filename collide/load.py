@@ -145,7 +145,7 @@ def _loader_message(exc, path):
         return f"content is not {path.suffix.lstrip('.').upper()} that trimesh can parse"
     text = str(exc).splitlines()[0] if str(exc).strip() else ""
     text = _QUOTED.sub("'...'", text)[:120]
-    return text or type(exc).__name__
+    return text if re.search("[A-Za-z]{3}", text.replace("'...'", "")) else type(exc).__name__
 
 
 def load_mesh(path):

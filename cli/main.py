@@ -142,6 +142,22 @@ class _ByteSize(click.ParamType):
                       param, ctx)
 
 
+class _NonEmptyPath(click.Path):
+    """A path argument (str, not checked here: collide's own checks say what is wrong
+    with it); only the empty string is refused (it would mean the current folder)."""
+
+    def __init__(self):
+        super().__init__(path_type=str)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value == "":
+            self.fail("the path is empty", param, ctx)
+        return super().convert(value, param, ctx)
+
+
+PATH = _NonEmptyPath()
+
+
 class _FiniteFloat(click.FloatRange):
     """A FloatRange that refuses nan and infinities."""
 
@@ -225,9 +241,9 @@ def cli():
 
 
 @cli.command()
-@click.argument("meshes", type=click.Path(path_type=str))
-@click.argument("trajectory", type=click.Path(path_type=str))
-@click.option("-o", "--output", default="contacts.h5", show_default=True, type=click.Path(),
+@click.argument("meshes", type=PATH)
+@click.argument("trajectory", type=PATH)
+@click.option("-o", "--output", default="contacts.h5", show_default=True, type=PATH,
               help="Result file (HDF5); replaced only by a complete new file, never an input file.")
 @click.option("--mode", type=click.Choice(["continuous", "discrete"]), default="continuous",
               show_default=True, help="continuous: also detect contact between frames; "
@@ -300,8 +316,8 @@ def _print_summary(result, output, fmt):
 
 
 @cli.command()
-@click.argument("trajectory", type=click.Path(path_type=str))
-@click.argument("meshes", required=False, type=click.Path(path_type=str))
+@click.argument("trajectory", type=PATH)
+@click.argument("meshes", required=False, type=PATH)
 @click.option("--allow-external-data", is_flag=True,
               help="Follow HDF5 external links, external storage and virtual datasets (refused by default).")
 @memory_option
@@ -321,7 +337,7 @@ def validate(trajectory, meshes, allow_external_data, max_memory):
 
 
 @cli.command()
-@click.argument("meshes", type=click.Path(path_type=str))
+@click.argument("meshes", type=PATH)
 @click.option("--split", "splits", type=click.Choice(["sah", "median", "mean"]), multiple=True,
               help="Split rule(s) to build with [default: all three].")
 @click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
@@ -345,7 +361,7 @@ def inspect(meshes, splits, leaf_size, fmt):
 
 
 @cli.command()
-@click.argument("contacts", type=click.Path(path_type=str))
+@click.argument("contacts", type=PATH)
 @click.option("--format", "fmt", type=click.Choice(["table", "csv", "json", "jsonl"]), default="table",
               show_default=True, help="table for people; csv/jsonl stream a row per line; json is one document.")
 @click.option("--what", type=click.Choice(["contacts", "pairs", "triangle-pairs"]), default="contacts",
@@ -410,8 +426,8 @@ def _print_table(rows, fields):
 
 
 @cli.command()
-@click.argument("baseline", type=click.Path(path_type=str))
-@click.argument("contacts", type=click.Path(path_type=str))
+@click.argument("baseline", type=PATH)
+@click.argument("contacts", type=PATH)
 @click.option("--time-tol", type=_FiniteFloat(min=0), default=1e-9, show_default=True,
               help="Largest difference of t_begin / t_end (in time units) still counted as the same.")
 @memory_option
@@ -435,8 +451,8 @@ def diff(baseline, contacts, time_tol, max_memory):
 
 
 @cli.command()
-@click.argument("contacts", type=click.Path(path_type=str))
-@click.option("-o", "--output", default="timeline.png", show_default=True, type=click.Path(),
+@click.argument("contacts", type=PATH)
+@click.option("-o", "--output", default="timeline.png", show_default=True, type=PATH,
               help="PNG file to write.")
 @click.option("--title", default=None, help="Plot title.")
 @click.option("--max-pairs", type=click.IntRange(min=1), default=PLOT_MAX_PAIRS, show_default=True,

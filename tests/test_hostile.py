@@ -582,3 +582,23 @@ def test_plot_draws_any_names_and_finite_times_or_refuses(tmp_path_factory, name
         assert not np.isfinite((frame_time[-1] - frame_time[0]) * 1.1)
         return
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_unreadable_inputs_say_permission_denied(tmp_path, monkeypatch):
+    """(Simulated: the tests may run as root, who can read everything.)"""
+    meshes, traj = _scene(tmp_path)
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: False if str(path) == str(traj)
+                        else real_access(path, mode, **kw))
+    with pytest.raises(InputError, match=r"traj\.h5: cannot read file \(permission denied\); expected"):
+        load_trajectory(traj)
+    real_open = os.open
+
+    def refusing_open(path, flags, *args, **kwargs):
+        if str(path).endswith("a.stl"):
+            raise PermissionError(errno.EACCES, "Permission denied")
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", refusing_open)
+    with pytest.raises(InputError, match=r"a\.stl: cannot open \(permission denied\); expected"):
+        collide.load.load_mesh(meshes / "a.stl")

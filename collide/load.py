@@ -285,6 +285,9 @@ def _read_time(src, ds):
     time = _read_float(src, ds, "time", TIME)
     if time.shape[0] < 1:
         raise InputError(src.path, "is empty", "at least one frame time", dataset="time")
+    if not np.isfinite(time[-1] - time[0]):
+        raise InputError(src.path, f"spans {float(time[0])!r} to {float(time[-1])!r}, beyond float64",
+                         "times whose span (last - first) is a finite number", dataset="time")
     steps = np.diff(time)
     if (steps <= 0).any():
         k = int(np.argmax(steps <= 0))

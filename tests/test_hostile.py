@@ -88,16 +88,16 @@ def test_scan_never_writes_over_an_input(tmp_path):
 
 
 def test_only_regular_files_are_replaced(tmp_path):
+    """(Checks only: nothing is written, so aiming at /dev/null is harmless here.)"""
     os.mkfifo(tmp_path / "fifo")
-    (tmp_path / "sock_dir").mkdir()
+    (tmp_path / "folder").mkdir()
     for target, problem in ((tmp_path / "fifo", "FIFO"), ("/dev/null", "character device"),
-                            (tmp_path / "sock_dir", "is a folder")):
+                            (tmp_path / "folder", "is a folder")):
         with pytest.raises(InputError, match=problem):
             output.check_output_path(target)
     (tmp_path / "to_null").symlink_to("/dev/null")
     with pytest.raises(InputError, match="character device"):
         output.check_output_path(tmp_path / "to_null")
-    assert os.path.exists("/dev/null") and not os.path.isfile("/dev/null")
 
 
 def test_a_symlinked_output_is_written_through_the_link(tmp_path):
@@ -602,3 +602,11 @@ def test_unreadable_inputs_say_permission_denied(tmp_path, monkeypatch):
     monkeypatch.setattr(os, "open", refusing_open)
     with pytest.raises(InputError, match=r"a\.stl: cannot open \(permission denied\); expected"):
         collide.load.load_mesh(meshes / "a.stl")
+
+
+def test_time_span_beyond_float64_is_refused(tmp_path):
+    meshes, traj = _scene(tmp_path)
+    with h5py.File(traj, "r+") as f:
+        f["time"][...] = [-1e308, -1.0, 1.0, 1e308]
+    with pytest.raises(InputError, match="time: spans -1e\\+308 to 1e\\+308, beyond float64"):
+        load_trajectory(traj)

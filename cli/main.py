@@ -170,7 +170,8 @@ class _FiniteFloat(click.FloatRange):
 
 def memory_option(command):
     default = memory_limit()
-    shown = f"{format_size(default)}, half of this machine's memory" if default else "no limit"
+    shown = (f"{format_size(default)}, {config.MAX_MEMORY_FRACTION:.0%} of this machine's memory" if default
+             else "no limit")
     return click.option("--max-memory", type=_ByteSize(), default=None, metavar="SIZE",
                         help="Refuse inputs whose declared sizes need more memory than this "
                              f"(e.g. 4G, 512M) [default: {shown}].")(command)

@@ -85,3 +85,7 @@ MAX_WORKERS = 1024
 #: whole frame interval already says nothing about when within the step a contact
 #: begins.
 MAX_TIME_TOL = 1.0
+
+#: collide plot draws times of magnitude up to this (time units); matplotlib's
+#: axis arithmetic (margins, tick formatting) overflows near float64's maximum.
+PLOT_MAX_TIME = 1e300

@@ -1,4 +1,4 @@
-"""Loading and validating inputs (SPEC §2): a folder of meshes and an HDF5 trajectory.
+"""Loading and validating inputs: a folder of meshes and an HDF5 trajectory (README, "Inputs").
 
 Every problem raises ``InputError(file, problem, expected, dataset)`` before
 any work starts, so a bad input never costs a long run or a broken output.

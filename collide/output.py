@@ -30,7 +30,7 @@ import numpy as np
 from . import config
 from .contacts import CONTACT_COLUMNS, KIND_LABELS, TRIANGLE_PAIR_COLUMNS
 from .errors import InputError, escape_text
-from .files import (check_memory, declared_size, format_size, hdf5_object, memory_limit, not_regular,
+from .files import (check_memory, declared_size, hdf5_object, memory_limit, not_regular,
                     open_hdf5, os_problem)
 
 log = logging.getLogger("collide")

@@ -415,7 +415,8 @@ def test_coordinates_beyond_the_limit_are_refused(tmp_path_factory, position_exp
 
 def test_objects_1e200_apart_are_refused_not_reported_in_contact(tmp_path):
     meshes, traj = _scene(tmp_path, position=np.full((3, 1, 3), 1e200))
-    with pytest.raises(InputError, match="poses/position: position at frame 0, object 0 lies 1.73e\\+200 from the origin"):
+    expected = "poses/position: position at frame 0, object 0 lies 1.73e\\+200 from the origin"
+    with pytest.raises(InputError, match=expected):
         collide.scan(meshes, traj, mode="discrete")
 
 

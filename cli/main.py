@@ -164,11 +164,13 @@ class _FiniteFloat(click.FloatRange):
     def convert(self, value, param, ctx):
         number = super().convert(value, param, ctx)
         if not math.isfinite(number):
-            self.fail(f"{value!r} is not a finite number", param, ctx)
+            self.fail(f"{value!r} is not a finite number; expected a number in {self._describe_range()}",
+                      param, ctx)
         return number
 
 
 def memory_option(command):
+    """Add --max-memory (bytes, None = the default fraction of this machine's memory)."""
     default = memory_limit()
     shown = (f"{format_size(default)}, {config.MAX_MEMORY_FRACTION:.0%} of this machine's memory" if default
              else "no limit")
@@ -184,6 +186,7 @@ def _json(value, **kwargs):
 
 
 def _json_safe(value):
+    """``value`` with non-finite floats replaced by None (dicts, lists, numpy scalars too)."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):

@@ -554,6 +554,7 @@ def test_input_errors_are_one_line_whatever_the_file_name():
 
 # --- plot: any names, any finite times -------------------------------------------------------------
 
+@pytest.mark.filterwarnings("ignore:Glyph .* missing from font:UserWarning")  # the CLI logs these at -vv
 @settings(max_examples=int(os.environ.get("HOSTILE_EXAMPLES", 12)), deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(names=st.lists(st.text(min_size=1, max_size=12).filter(lambda s: "\x00" not in s), min_size=2, max_size=4,

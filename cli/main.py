@@ -1,20 +1,51 @@
-"""The ``collide`` command line: parse, call the collide API, report (SPEC §1).
+"""The ``collide`` command line: parse, call the collide API, report.
 
 Exit codes: 0 success, 1 findings (--fail-on-contact, diff), 2 usage error or
-bad input, 3 internal error, 130 interrupted. Data goes to stdout; logs,
-warnings, progress and errors to stderr.
+bad input, 3 internal error, 130 interrupted (Ctrl-C), 128 + N for signal N
+(143 SIGTERM, 129 SIGHUP). Data goes to stdout; logs, warnings, progress and
+errors to stderr.
 """
-import json
-import logging
+import os
+import signal
 import sys
-import traceback
 
-import click
 
-import collide
-from collide import config
-from collide.errors import CollideError
-from collide.plot import MAX_PAIRS as PLOT_MAX_PAIRS
+def _stop_quietly(signum, frame):
+    """A stop signal while nothing needs cleaning up (modules still loading, or the
+    work is done): say so and end at once, without a traceback."""
+    message = "interrupted" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+    os.write(2, f"collide: {message}\n".encode())
+    os._exit(128 + signum)
+
+
+def _running_as_program():
+    """True when this module runs as the collide program (console script or
+    ``python -m collide_cli.main``), not when other code imports it."""
+    program = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ""
+    return __name__ == "__main__" or program in ("collide", "collide.exe")
+
+
+_STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+_AS_PROGRAM = _running_as_program()
+if _AS_PROGRAM:  # before the slow imports below (numpy, h5py, numba): Ctrl-C there is no traceback
+    for _signum in _STOP_SIGNALS:
+        if signal.getsignal(_signum) in (signal.default_int_handler, signal.SIG_DFL):
+            signal.signal(_signum, _stop_quietly)
+
+import json  # noqa: E402
+import logging  # noqa: E402
+import math  # noqa: E402
+import threading  # noqa: E402
+import traceback  # noqa: E402
+import warnings  # noqa: E402
+
+import click  # noqa: E402
+
+import collide  # noqa: E402
+from collide import config  # noqa: E402
+from collide.errors import CollideError, Terminated, escape_text  # noqa: E402
+from collide.files import format_size, memory_limit, parse_size  # noqa: E402
+from collide.plot import MAX_PAIRS as PLOT_MAX_PAIRS  # noqa: E402
 
 EXIT_FINDINGS = 1
 EXIT_BAD_INPUT = 2
@@ -33,16 +64,56 @@ def _set_verbosity(ctx, param, value):
     return value
 
 
+class _OneLineFormatter(logging.Formatter):
+    """collide's log lines: control characters in names and paths are escaped."""
+
+    def format(self, record):
+        return escape_text(super().format(record))
+
+
 def _configure_logging():
+    """collide's log on stderr at the -q/-v level; other libraries' logs (trimesh,
+    matplotlib, ...) only with -vv, never Python's bare last-resort output."""
     logger = logging.getLogger("collide")
     if not logger.handlers:
         handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(logging.Formatter("collide: %(levelname)s: %(message)s"))
+        handler.setFormatter(_OneLineFormatter("collide: %(levelname)s: %(message)s"))
         logger.addHandler(handler)
         logger.propagate = False
+        root = logging.getLogger()
+        root.addHandler(logging.NullHandler())
+        _state["library_handler"] = handler
     level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(
         max(-1, min(1, _state["verbosity"])))
     logger.setLevel(logging.DEBUG if _state["verbosity"] > 1 else level)
+    root = logging.getLogger()
+    handler = _state.get("library_handler")
+    if _state["verbosity"] > 1 and handler is not None and handler not in root.handlers:
+        root.addHandler(handler)
+        root.setLevel(logging.DEBUG)
+
+
+def _warning_to_log(message, category, filename, lineno, file=None, line=None):
+    """Python warnings (numpy floating-point warnings, library deprecations) go to the
+    debug log (-vv), never bare onto stderr."""
+    logging.getLogger("collide").debug("%s: %s (%s:%s)", category.__name__, message, filename, lineno)
+
+
+def _unraisable(info):
+    """Exceptions Python cannot raise (in finalizers, HDF5 callbacks): an interrupt is
+    sent again so that it is not lost; anything else goes to the debug log instead
+    of an "Exception ignored" traceback."""
+    exc = info.exc_value
+    if isinstance(exc, (KeyboardInterrupt, Terminated)):
+        signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+        threading.Thread(target=os.kill, args=(os.getpid(), signum), daemon=True).start()
+        return
+    logging.getLogger("collide").debug("ignored %s in %r: %s", type(exc).__name__, info.object, exc)
+
+
+def _terminate(signum, frame):
+    """Ctrl-C, SIGTERM, SIGHUP during a command: unwind it (see main)."""
+    raise Terminated(signum)
 
 
 def verbosity_options(command):
@@ -57,6 +128,87 @@ def _progress_bar(total, label):
     if _state["verbosity"] < 0 or not sys.stderr.isatty():
         return None
     return click.progressbar(length=total, label=label, file=sys.stderr, show_eta=True)
+
+
+class _ByteSize(click.ParamType):
+    """A memory size: bytes, or with a K/M/G/T suffix (powers of 1024), e.g. 4G, 512M."""
+    name = "SIZE"
+
+    def convert(self, value, param, ctx):
+        try:
+            return parse_size(value)
+        except ValueError:
+            self.fail(f"{value!r} is not a size; expected a positive size such as 4G, 512M or 1500000000",
+                      param, ctx)
+
+
+class _NonEmptyPath(click.Path):
+    """A path argument (str, not checked here: collide's own checks say what is wrong
+    with it); only the empty string is refused (it would mean the current folder)."""
+
+    def __init__(self):
+        super().__init__(path_type=str)
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value == "":
+            self.fail("the path is empty", param, ctx)
+        return super().convert(value, param, ctx)
+
+
+PATH = _NonEmptyPath()
+
+
+class _FiniteFloat(click.FloatRange):
+    """A FloatRange that refuses nan and infinities."""
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number; expected a number in {self._describe_range()}",
+                      param, ctx)
+        return number
+
+
+def memory_option(command):
+    """Add --max-memory (bytes, None = the default fraction of this machine's memory)."""
+    default = memory_limit()
+    shown = (f"{format_size(default)}, {config.MAX_MEMORY_FRACTION:.0%} of this machine's memory" if default
+             else "no limit")
+    return click.option("--max-memory", type=_ByteSize(), default=None, metavar="SIZE",
+                        help="Refuse inputs whose declared sizes need more memory than this "
+                             f"(e.g. 4G, 512M) [default: {shown}].")(command)
+
+
+def _json(value, **kwargs):
+    """Standard JSON text of ``value``: NaN and infinities become null (json.dumps
+    would write bare NaN, which JSON parsers reject)."""
+    return json.dumps(_json_safe(value), allow_nan=False, **kwargs)
+
+
+def _json_safe(value):
+    """``value`` with non-finite floats replaced by None (dicts, lists, numpy scalars too)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):  # numpy scalars
+        return _json_safe(value.item())
+    return value
+
+
+def _print_json_document(head, rows):
+    """Print {**head, "rows": [...]} as one JSON document, a row at a time (rows may
+    be a generator: the document is never held in memory)."""
+    text = _json(dict(head, rows=[]), indent=1)
+    cut = text.rindex("[]")
+    click.echo(text[:cut] + "[", nl=False)
+    count = 0
+    for row in rows:
+        click.echo(("\n  " if count == 0 else ",\n  ") + _json(row), nl=False)
+        count += 1
+    click.echo(("\n ]" if count else "]") + text[cut + 2:])
 
 
 # --- commands ------------------------------------------------------------------------------
@@ -93,10 +245,10 @@ def cli():
 
 
 @cli.command()
-@click.argument("meshes", type=click.Path(path_type=str))
-@click.argument("trajectory", type=click.Path(path_type=str))
-@click.option("-o", "--output", default="contacts.h5", show_default=True, type=click.Path(),
-              help="Result file (HDF5, SPEC §4); replaced only by a complete new file.")
+@click.argument("meshes", type=PATH)
+@click.argument("trajectory", type=PATH)
+@click.option("-o", "--output", default="contacts.h5", show_default=True, type=PATH,
+              help="Result file (HDF5); replaced only by a complete new file, never an input file.")
 @click.option("--mode", type=click.Choice(["continuous", "discrete"]), default="continuous",
               show_default=True, help="continuous: also detect contact between frames; "
                                       "discrete: frame poses only.")
@@ -110,21 +262,27 @@ def cli():
               help="Screw motion: warn when an object turns more than this between two frames.")
 @click.option("--split", type=click.Choice(["sah", "median", "mean"]), default="sah", show_default=True,
               help="BVH split rule.")
-@click.option("--leaf-size", type=click.IntRange(min=1), default=None,
+@click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
               help=f"Max triangles per BVH leaf [default: {config.DEFAULT_LEAF_SIZE}].")
 @click.option("--triangle-pairs", is_flag=True, help="Also write every intersecting triangle pair "
                                                     "at every frame (/triangle_pairs).")
 @click.option("--frames", default=None, metavar="START:STOP", help="Analyse a frame range (Python slice).")
 @click.option("--fail-on-contact", is_flag=True, help="Exit 1 if any contact is found (for CI).")
-@click.option("--workers", type=click.IntRange(min=1), default=None, help="Local parallelism [default: all cores].")
+@click.option("--workers", type=click.IntRange(min=1, max=config.MAX_WORKERS), default=None,
+              help="Local parallelism (threads) [default: all cores].")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Run on a Dask distributed cluster.")
-@click.option("--time-tol", type=click.FloatRange(min=0, min_open=True), default=config.TIME_TOL,
-              show_default=True, help="Continuous mode: tolerance of contact times, in frame intervals.")
+@click.option("--time-tol", type=_FiniteFloat(min=0, min_open=True, max=config.MAX_TIME_TOL),
+              default=config.TIME_TOL, show_default=True,
+              help="Continuous mode: tolerance of contact times, in frame intervals (at most 1).")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
               help="Summary format on stdout.")
+@click.option("--allow-external-data", is_flag=True,
+              help="Follow HDF5 external links, external storage and virtual datasets of the trajectory "
+                   "(they read other files; refused by default).")
+@memory_option
 @verbosity_options
 def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, leaf_size, triangle_pairs, frames,
-         fail_on_contact, workers, scheduler, time_tol, fmt):
+         fail_on_contact, workers, scheduler, time_tol, fmt, allow_external_data, max_memory):
     """Find when, where and for how long the meshes in MESHES touch along TRAJECTORY."""
     bar = None
     state = {"done": 0}
@@ -144,7 +302,8 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, lea
                               triangle_pairs=triangle_pairs, frames=frames, workers=workers,
                               scheduler=scheduler, time_tol=time_tol, interpolation=interpolation,
                               warn_angle=warn_angle, output=output, progress=progress,
-                              command=" ".join(["collide"] + sys.argv[1:]))
+                              command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
+                              allow_external_data=allow_external_data)
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
@@ -161,7 +320,7 @@ def _print_summary(result, output, fmt):
                "frames_in_contact": s["frames_in_contact"], "triangle_pairs": s["triangle_pairs"],
                "seconds": {k[:-2]: round(v, 4) for k, v in s.items() if k.endswith("_s")}}
     if fmt == "json":
-        click.echo(json.dumps(summary))
+        click.echo(_json(summary))
         return
     click.echo(f"{summary['contacts']} contact intervals between {summary['pairs_in_contact']} object pairs "
                f"({summary['frames_in_contact']} of {s['frames']} frames in contact, {s['objects']} objects, "
@@ -170,17 +329,20 @@ def _print_summary(result, output, fmt):
 
 
 @cli.command()
-@click.argument("trajectory", type=click.Path(path_type=str))
-@click.argument("meshes", required=False, type=click.Path(path_type=str))
+@click.argument("trajectory", type=PATH)
+@click.argument("meshes", required=False, type=PATH)
+@click.option("--allow-external-data", is_flag=True,
+              help="Follow HDF5 external links, external storage and virtual datasets (refused by default).")
+@memory_option
 @verbosity_options
-def validate(trajectory, meshes):
-    """Check TRAJECTORY (and the MESHES folder, if given) against SPEC §2; change nothing."""
+def validate(trajectory, meshes, allow_external_data, max_memory):
+    """Check TRAJECTORY (and the MESHES folder, if given) as scan would; change nothing."""
     from collide.load import load_scene, load_trajectory
     if meshes is None:
-        traj = load_trajectory(trajectory)
+        traj = load_trajectory(trajectory, allow_external=allow_external_data, max_memory=max_memory)
         click.echo(f"ok: {trajectory}: {traj.time.shape[0]} frames, {len(traj.names)} objects")
         return
-    scene = load_scene(meshes, trajectory)
+    scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory)
     n_static = int(scene.static.sum())
     triangles = sum(m.faces.shape[0] for m in scene.meshes)
     click.echo(f"ok: {trajectory}: {scene.time.shape[0]} frames, {len(scene.names)} objects "
@@ -188,10 +350,11 @@ def validate(trajectory, meshes):
 
 
 @cli.command()
-@click.argument("meshes", type=click.Path(path_type=str))
+@click.argument("meshes", type=PATH)
 @click.option("--split", "splits", type=click.Choice(["sah", "median", "mean"]), multiple=True,
               help="Split rule(s) to build with [default: all three].")
-@click.option("--leaf-size", type=click.IntRange(min=1), default=None, help="Max triangles per BVH leaf.")
+@click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
+              help="Max triangles per BVH leaf.")
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
 @verbosity_options
 def inspect(meshes, splits, leaf_size, fmt):
@@ -199,7 +362,7 @@ def inspect(meshes, splits, leaf_size, fmt):
     from collide.inspect import inspect_meshes
     rows = inspect_meshes(meshes, splits or ("sah", "median", "mean"), leaf_size)
     if fmt == "json":
-        click.echo(json.dumps(rows, indent=1))
+        click.echo(_json(rows, indent=1))
         return
     header = ("mesh", "triangles", "split", "nodes", "depth", "leaf min/mean/max", "SAH cost", "build ms")
     table = [header] + [(r["mesh"], str(r["triangles"]), r["split"], str(r["nodes"]), str(r["depth"]),
@@ -211,16 +374,17 @@ def inspect(meshes, splits, leaf_size, fmt):
 
 
 @cli.command()
-@click.argument("contacts", type=click.Path(path_type=str))
+@click.argument("contacts", type=PATH)
 @click.option("--format", "fmt", type=click.Choice(["table", "csv", "json", "jsonl"]), default="table",
               show_default=True, help="table for people; csv/jsonl stream a row per line; json is one document.")
 @click.option("--what", type=click.Choice(["contacts", "pairs", "triangle-pairs"]), default="contacts",
               show_default=True, help="Contact intervals, a summary per object pair, or triangle pairs per frame.")
+@memory_option
 @verbosity_options
-def report(contacts, fmt, what):
+def report(contacts, fmt, what, max_memory):
     """Print the contacts of a CONTACTS file (from collide scan) to stdout."""
     from collide import report as rep
-    cf = collide.read_contacts(contacts)
+    cf = collide.read_contacts(contacts, max_memory=max_memory)
     if what == "triangle-pairs" and cf.triangle_pairs is None:
         raise collide.InputError(contacts, "has no triangle_pairs", "a file from collide scan --triangle-pairs",
                                  dataset="triangle_pairs")
@@ -230,10 +394,10 @@ def report(contacts, fmt, what):
         _print_csv(rows, fields)
     elif fmt == "jsonl":
         for row in rows:
-            click.echo(json.dumps(row))
+            click.echo(_json(row))
     elif fmt == "json":
-        click.echo(json.dumps({"file": contacts, "mode": cf.attrs.get("mode"), "what": what,
-                               "objects": cf.objects["name"], "rows": list(rows)}, indent=1))
+        _print_json_document({"file": contacts, "mode": cf.attrs.get("mode"), "what": what,
+                              "objects": cf.objects["name"]}, rows)
     else:
         if what == "contacts":
             click.echo("contact intervals:")
@@ -275,19 +439,21 @@ def _print_table(rows, fields):
 
 
 @cli.command()
-@click.argument("baseline", type=click.Path(path_type=str))
-@click.argument("contacts", type=click.Path(path_type=str))
-@click.option("--time-tol", type=click.FloatRange(min=0), default=1e-9, show_default=True,
+@click.argument("baseline", type=PATH)
+@click.argument("contacts", type=PATH)
+@click.option("--time-tol", type=_FiniteFloat(min=0), default=1e-9, show_default=True,
               help="Largest difference of t_begin / t_end (in time units) still counted as the same.")
+@memory_option
 @verbosity_options
-def diff(baseline, contacts, time_tol):
+def diff(baseline, contacts, time_tol, max_memory):
     """Compare CONTACTS with BASELINE: exit 0 when the same, 1 (listing every difference) when not.
 
     Pairs are matched by object names; provenance is ignored. For CI:
     collide scan ... -o contacts.h5 && collide diff baseline.h5 contacts.h5
     """
     from collide.report import diff_contacts
-    differences = diff_contacts(collide.read_contacts(baseline), collide.read_contacts(contacts), time_tol)
+    differences = diff_contacts(collide.read_contacts(baseline, max_memory=max_memory),
+                                collide.read_contacts(contacts, max_memory=max_memory), time_tol)
     if not differences:
         click.echo(f"same contacts ({baseline} vs {contacts}, time tolerance {time_tol:g})")
         return
@@ -298,17 +464,21 @@ def diff(baseline, contacts, time_tol):
 
 
 @cli.command()
-@click.argument("contacts", type=click.Path(path_type=str))
-@click.option("-o", "--output", default="timeline.png", show_default=True, type=click.Path(),
+@click.argument("contacts", type=PATH)
+@click.option("-o", "--output", default="timeline.png", show_default=True, type=PATH,
               help="PNG file to write.")
 @click.option("--title", default=None, help="Plot title.")
 @click.option("--max-pairs", type=click.IntRange(min=1), default=PLOT_MAX_PAIRS, show_default=True,
               help="Draw at most this many object pairs (those that touch first).")
+@memory_option
 @verbosity_options
-def plot(contacts, output, title, max_pairs):
+def plot(contacts, output, title, max_pairs, max_memory):
     """Draw the contact intervals of CONTACTS over time, one row per object pair (PNG)."""
+    from collide.output import check_output_path
     from collide.plot import plot_timeline
-    plot_timeline(collide.read_contacts(contacts), output, title, max_pairs)
+    check_output_path(output, [contacts])  # never over the file being drawn
+    plot_timeline(collide.read_contacts(contacts, max_memory=max_memory), output, title, max_pairs,
+                  inputs=[contacts], source=contacts)
     click.echo(f"wrote {output}")
 
 
@@ -353,42 +523,90 @@ def urdf(robot, joints, output, meshes_out, geometry, ignore_adjacent, force):
 # --- entry point ------------------------------------------------------------------------------
 
 def main(argv=None):
-    """Run the CLI and map outcomes to SPEC §1 exit codes."""
+    """Run the CLI and exit with its code (see the module docstring).
+
+    Ctrl-C, SIGTERM and SIGHUP unwind the command (temporary files are removed)
+    and exit with 128 + the signal number (130, 143, 129), never with a traceback.
+    """
+    previous = _install_handlers()
+    try:
+        code = _run(argv)
+    except Terminated as exc:  # a signal in the instant after the command's own handling
+        code = 128 + exc.signum
+    finally:
+        _restore_handlers(previous)
+    sys.exit(code)
+
+
+def _install_handlers():
+    """Stop signals raise Terminated; Python warnings and unraisable exceptions go to
+    the debug log. Returns what was there before (for _restore_handlers)."""
+    previous = {"showwarning": warnings.showwarning, "unraisablehook": sys.unraisablehook, "signals": {}}
+    if threading.current_thread() is threading.main_thread():
+        for signum in _STOP_SIGNALS:
+            handler = signal.getsignal(signum)
+            if handler is not signal.SIG_IGN and handler is not None:
+                previous["signals"][signum] = signal.signal(signum, _terminate)
+    warnings.showwarning = _warning_to_log
+    sys.unraisablehook = _unraisable
+    return previous
+
+
+def _restore_handlers(previous):
+    """After the command: as the program, a late stop signal just ends the process
+    quietly; called from other code, the previous handlers come back."""
+    for signum, handler in previous["signals"].items():
+        signal.signal(signum, _stop_quietly if _AS_PROGRAM else handler)
+    if not _AS_PROGRAM:
+        warnings.showwarning = previous["showwarning"]
+        sys.unraisablehook = previous["unraisablehook"]
+
+
+def _error(text):
+    """Print one ``collide: ...`` line on stderr (control characters escaped)."""
+    click.echo(escape_text(text), err=True)
+
+
+def _run(argv):
+    """Run the command line; returns the exit code."""
     try:
         cli.main(args=argv, prog_name="collide", standalone_mode=False)
     except click.exceptions.Exit as exc:
-        sys.exit(exc.exit_code)
+        return exc.exit_code
     except click.UsageError as exc:  # bad command line: one line, exit 2
         command = exc.ctx.command_path if exc.ctx is not None else "collide"
         message = " ".join(exc.format_message().split()).rstrip(".")
-        click.echo(f"collide: error: {message}; see '{command} --help'", err=True)
-        sys.exit(EXIT_BAD_INPUT)
-    except click.ClickException as exc:  # other click errors (file arguments): exit 2
-        click.echo(f"collide: error: {' '.join(exc.format_message().split())}", err=True)
-        sys.exit(EXIT_BAD_INPUT if exc.exit_code in (1, 2) else exc.exit_code)
+        _error(f"collide: error: {message}; see '{command} --help'")
+        return EXIT_BAD_INPUT
+    except click.ClickException as exc:  # other click errors: exit 2
+        _error(f"collide: error: {' '.join(exc.format_message().split()).rstrip('.')}; "
+               "expected arguments as described by --help")
+        return EXIT_BAD_INPUT if exc.exit_code in (1, 2) else exc.exit_code
+    except Terminated as exc:
+        _error("collide: interrupted" if exc.signum == signal.SIGINT else
+               f"collide: terminated by {signal.Signals(exc.signum).name}")
+        return 128 + exc.signum
     except (KeyboardInterrupt, click.exceptions.Abort):
-        click.echo("collide: interrupted", err=True)
-        sys.exit(EXIT_INTERRUPTED)
+        _error("collide: interrupted")
+        return EXIT_INTERRUPTED
     except CollideError as exc:
-        click.echo(f"collide: error: {exc}", err=True)
-        sys.exit(EXIT_BAD_INPUT)
+        _error(f"collide: error: {exc}")
+        return EXIT_BAD_INPUT
     except BrokenPipeError:
         _silence_broken_pipe()
-        sys.exit(0)
-    except SystemExit:
-        raise
+        return 0
+    except SystemExit as exc:
+        return exc.code
     except Exception as exc:
         if _state["verbosity"] > 0:
             traceback.print_exc()
-        click.echo(f"collide: internal error: {type(exc).__name__}: {exc} (run with -v for a traceback)",
-                   err=True)
-        sys.exit(EXIT_INTERNAL)
-    sys.exit(0)
+        _error(f"collide: internal error: {type(exc).__name__}: {exc} (run with -v for a traceback)")
+        return EXIT_INTERNAL
+    return 0
 
 
 def _silence_broken_pipe():
     """After the reader of stdout went away (``| head``), stop Python's exit-time flush error."""
-    import os
     try:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

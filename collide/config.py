@@ -64,3 +64,45 @@ SAH_BINS = 16
 
 #: SAH cost of visiting a node relative to testing one primitive.
 SAH_TRAVERSAL_COST = 1.0
+
+# --- hostile input and resource limits ----------------------------------------
+#: Largest magnitude of any world coordinate (length units): every mesh vertex,
+#: every position, and |position| + |vertex| of every object at every frame must
+#: stay at or below it. The exact predicates multiply three coordinate
+#: differences (and their rounding errors), which overflows float64 beyond about
+#: 1e100; continuous collision (collide.ccd) needs |x| < 1e150. Inputs beyond it
+#: are refused rather than answered wrongly.
+MAX_COORDINATE = 1e90
+
+#: Default memory limit of a command (--max-memory), as a fraction of the
+#: machine's physical memory. Unitless.
+MAX_MEMORY_FRACTION = 0.5
+
+#: Estimated peak bytes per (frame, object) pose while a trajectory is read and
+#: scanned: the float64 read (up to 16 values), rotation matrices, norms and the
+#: [R | p] copies made by load and scan (about 60 float64 values). Bytes.
+POSE_BYTES = 512
+
+#: Estimated bytes per string read from an HDF5 dataset (object names, mesh
+#: names): the Python str object, its list slot and the HDF5 read buffer. Bytes.
+STRING_BYTES = 256
+
+#: Estimated bytes per numeric element read from a file: the read itself plus one
+#: converted (float64 / int64) copy. Bytes.
+NUMBER_BYTES = 16
+
+#: Largest --leaf-size: a leaf never holds more than a mesh's triangles, and
+#: triangle indices are int32 in the output; larger values change nothing.
+MAX_LEAF_SIZE = 2**31 - 1
+
+#: Largest --workers (threads): more threads than this only costs memory.
+MAX_WORKERS = 1024
+
+#: Largest scan --time-tol, as a fraction of the frame interval: a tolerance of a
+#: whole frame interval already says nothing about when within the step a contact
+#: begins.
+MAX_TIME_TOL = 1.0
+
+#: collide plot draws times of magnitude up to this (time units); matplotlib's
+#: axis arithmetic (margins, tick formatting) overflows near float64's maximum.
+PLOT_MAX_TIME = 1e300

@@ -1,17 +1,22 @@
-"""Loading and validating inputs (SPEC §2): a folder of meshes and an HDF5 trajectory.
+"""Loading and validating inputs: a folder of meshes and an HDF5 trajectory (README, "Inputs").
 
 Every problem raises ``InputError(file, problem, expected, dataset)`` before
 any work starts, so a bad input never costs a long run or a broken output.
 """
+import errno
 import logging
 import os
+import re
+import stat
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from . import config
-from .errors import InputError
+from .errors import InputError, escape_text
+from .files import (check_memory, declared_size, hdf5_object, memory_limit, not_regular, open_hdf5,
+                    open_regular, os_problem)
 
 log = logging.getLogger("collide")
 
@@ -31,9 +36,14 @@ class Trajectory(NamedTuple):
     names: list           #: N object names
     mesh_files: list      #: N mesh file names or stems from objects/mesh, or None
     poses: np.ndarray     #: float64 (T, N, 3, 4): rows [R | p], world = R @ body + p
+    pose_dataset: str = "poses/position"  #: where the positions came from (for messages)
 
 
 # --- meshes -----------------------------------------------------------------------------
+
+MESHES_FOLDER = "a folder of mesh files (STL, OBJ, PLY, OFF, GLB, ...)"
+MESH_FILE = "a valid triangle mesh file"
+
 
 def _mesh_suffixes():
     import trimesh
@@ -42,21 +52,29 @@ def _mesh_suffixes():
 
 
 def mesh_files(folder):
-    """Mesh files of a folder, sorted by name: {stem: path}. Validates the folder."""
+    """Mesh files of a folder, sorted by name: {stem: path}. Validates the folder.
+
+    Symbolic links are followed. A mesh-named entry that is not a regular file
+    (FIFO, device, socket, dangling link) is an InputError; folders and files
+    with other suffixes are ignored.
+    """
     folder = Path(folder)
-    if not folder.exists():
-        raise InputError(folder, "no such folder", "a folder of mesh files")
-    if not folder.is_dir():
-        raise InputError(folder, "not a folder", "a folder of mesh files (STL, OBJ, PLY, OFF, GLB, ...)")
+    try:
+        info = os.stat(folder)
+    except OSError as exc:
+        problem = "no such folder" if exc.errno == errno.ENOENT else os_problem(exc)
+        raise InputError(folder, problem, MESHES_FOLDER) from None
+    if not stat.S_ISDIR(info.st_mode):
+        raise InputError(folder, "not a folder", MESHES_FOLDER)
     suffixes = _mesh_suffixes()
     try:
         entries = sorted(folder.iterdir())
     except OSError as exc:
-        raise InputError(folder, f"cannot list folder ({exc.strerror})", "a readable folder") from None
+        raise InputError(folder, f"cannot list folder ({os_problem(exc)})", "a readable folder") from None
     found = {}
     for path in entries:
-        if path.name.startswith(".") or not path.is_file() or path.suffix.lower() not in suffixes:
-            log.info("%s: not a mesh file, ignored", path)
+        if path.name.startswith(".") or path.suffix.lower() not in suffixes or not _is_mesh_entry(path):
+            log.info("%s: not a mesh file, ignored", escape_text(path))
             continue
         if path.stem in found:
             raise InputError(path, f"duplicate mesh name {path.stem!r} (also {found[path.stem].name})",
@@ -68,24 +86,83 @@ def mesh_files(folder):
     return found
 
 
+def _is_mesh_entry(path):
+    """True for a regular file (symlinks followed), False for a folder; InputError for
+    anything else (a FIFO, device or socket named like a mesh, a dangling link)."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as exc:
+        problem = "dangling symbolic link" if os.path.islink(path) else os_problem(exc)
+        raise InputError(path, problem, "a regular mesh file") from None
+    if stat.S_ISDIR(mode):
+        return False
+    problem = not_regular(mode)
+    if problem is not None:
+        raise InputError(path, f"{problem}, not a regular file", "a regular mesh file")
+    return True
+
+
+def _mesh_resolver(folder):
+    """A trimesh resolver for the files a mesh file references (GLTF buffers, OBJ
+    materials): regular files inside ``folder`` only, never blocking on a FIFO."""
+    import trimesh
+
+    class FolderResolver(trimesh.resolvers.Resolver):
+        def __init__(self, root):
+            self.root = os.path.realpath(root)
+
+        def get(self, name):
+            for candidate in (str(name).strip(), os.path.basename(str(name).strip())):
+                real = os.path.realpath(os.path.join(self.root, candidate.lstrip("/")))
+                if os.path.commonpath([real, self.root]) == self.root and os.path.isfile(real):
+                    try:
+                        with open_regular(real, "an asset file") as f:
+                            return f.read()
+                    except InputError:
+                        break
+            raise FileNotFoundError(f"{name}: not a regular file in the meshes folder")
+
+        def keys(self):
+            return iter(())
+
+        def namespaced(self, namespace):
+            return self
+
+        def write(self, name, data):
+            raise OSError("collide never writes into the meshes folder")
+
+    return FolderResolver(folder)
+
+
+#: quoted text in a loader's message may be the file's own bytes: not echoed
+_QUOTED = re.compile(r"'[^']*'|\"[^\"]*\"")
+
+
+def _loader_message(exc, path):
+    """A short description of why trimesh could not load ``path``, without quoting the
+    file's content (a mesh file could be a symbolic link to a secret)."""
+    if isinstance(exc, ImportError):  # trimesh's fallback for undecodable text files
+        return f"content is not {path.suffix.lstrip('.').upper()} that trimesh can parse"
+    text = str(exc).splitlines()[0] if str(exc).strip() else ""
+    text = _QUOTED.sub("'...'", text)[:120]
+    return text if re.search("[A-Za-z]{3}", text.replace("'...'", "")) else type(exc).__name__
+
+
 def load_mesh(path):
     """Load one mesh file as triangles, faces exactly as the file lists them.
 
     Multi-part files (scenes) are merged in order. Raises InputError for
-    unreadable files, no triangles or non-finite vertices.
+    files that are not regular files, unreadable files, no triangles, non-finite
+    vertices or coordinates beyond config.MAX_COORDINATE.
     """
     import trimesh
     path = Path(path)
-    if not os.access(path, os.R_OK):
-        raise InputError(path, "cannot read file (permission denied)", "a readable mesh file")
-    try:
-        loaded = trimesh.load(str(path), process=False, force="mesh")
-    except Exception as exc:  # trimesh raises many exception types for bad files
-        if isinstance(exc, ImportError):  # trimesh's fallback for undecodable text files
-            msg = f"content is not {path.suffix.lstrip('.').upper()} that trimesh can parse"
-        else:
-            msg = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
-        raise InputError(path, f"cannot load mesh ({msg})", "a valid triangle mesh file") from None
+    with open_regular(path, "a readable mesh file") as file_obj:
+        try:
+            loaded = trimesh.load(file_obj, file_type=path.suffix.lstrip(".").lower(), process=False,
+                                  force="mesh", resolver=_mesh_resolver(path.parent))
+        except Exception as exc:  # trimesh raises many exception types for bad files
+            raise InputError(path, f"cannot load mesh ({_loader_message(exc, path)})", MESH_FILE) from None
     vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64)
     if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
@@ -95,6 +172,10 @@ def load_mesh(path):
     if not np.isfinite(vertices).all():
         bad = int((~np.isfinite(vertices)).any(axis=1).sum())
         raise InputError(path, f"{bad} vertices are NaN or infinite", "finite vertex coordinates")
+    largest = float(lengths(vertices).max(initial=0.0))
+    if not largest <= config.MAX_COORDINATE:
+        raise InputError(path, f"a vertex lies {largest:.3g} from the origin",
+                         f"vertices within {config.MAX_COORDINATE:g} of the origin")
     if faces.min() < 0 or faces.max() >= vertices.shape[0]:
         raise InputError(path, "faces index missing vertices", f"indices in [0, {vertices.shape[0]})")
     return Mesh(path.stem, path, np.ascontiguousarray(vertices), np.ascontiguousarray(faces))
@@ -102,90 +183,131 @@ def load_mesh(path):
 
 # --- trajectory ----------------------------------------------------------------------------
 
-def _open_hdf5(path):
-    import h5py
-    path = Path(path)
-    if not path.exists():
-        raise InputError(path, "no such file", "an HDF5 trajectory file")
-    if path.is_dir():
-        raise InputError(path, "is a folder", "an HDF5 trajectory file")
-    try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        detail = "not an HDF5 file or truncated" if "signature" in str(exc) or "truncated" in str(exc) \
-            else str(exc).split("(")[0].strip()[:100]
-        raise InputError(path, f"cannot open as HDF5 ({detail})", "an HDF5 trajectory file (SPEC §2.2)") \
-            from None
+TRAJECTORY = "an HDF5 trajectory file (time, objects/name, poses/...)"
 
 
-def _dataset(h5, path, name, expected):
+class _Source(NamedTuple):
+    """An open trajectory: the h5py.File, its path, and whether data outside it may be read."""
+    h5: object
+    path: Path
+    allow_external: bool
+
+
+def _dataset(src, name, expected):
+    """The h5py.Dataset ``name``, refusing groups, missing names and data outside the file."""
     import h5py
-    if name not in h5:
-        raise InputError(path, "missing dataset", expected, dataset=name)
-    obj = h5[name]
+    obj = hdf5_object(src.h5, src.path, name, src.allow_external)
+    if obj is None:
+        raise InputError(src.path, "missing dataset", expected, dataset=name)
     if not isinstance(obj, h5py.Dataset):
-        raise InputError(path, "is a group, not a dataset", expected, dataset=name)
+        raise InputError(src.path, "is a group, not a dataset", expected, dataset=name)
     return obj
 
 
-def _float_array(h5, path, name, shape, expected):
-    """Read a numeric dataset as float64, checking shape (None = any) and finiteness."""
-    ds = _dataset(h5, path, name, expected)
+def _exists(src, name):
+    """Whether ``name`` exists (checked link by link, see files.hdf5_object)."""
+    return hdf5_object(src.h5, src.path, name, src.allow_external) is not None
+
+
+def _shape_text(shape):
+    return "(" + ", ".join("T" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+def _numeric(src, name, shape, expected):
+    """A numeric dataset whose declared shape matches ``shape`` (None = any extent);
+    nothing is read yet."""
+    ds = _dataset(src, name, expected)
     if ds.dtype.kind not in "fiu":
-        raise InputError(path, f"has dtype {ds.dtype}", f"numbers: {expected}", dataset=name)
+        raise InputError(src.path, f"has dtype {ds.dtype}", f"numbers: {expected}", dataset=name)
+    declared = ds.shape
+    if declared is None:
+        raise InputError(src.path, "has no dataspace (empty)", f"shape {_shape_text(shape)}: {expected}",
+                         dataset=name)
+    if len(shape) != len(declared) or any(s is not None and s != d for s, d in zip(shape, declared)):
+        raise InputError(src.path, f"has shape {declared}", f"shape {_shape_text(shape)}: {expected}",
+                         dataset=name)
+    return ds
+
+
+def _read_float(src, ds, name, expected):
+    """Read a dataset (already checked by _numeric) as finite float64."""
     try:
         data = np.asarray(ds[()], dtype=np.float64)
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"cannot read ({str(exc)[:80]})", expected, dataset=name) from None
-    if len(shape) != data.ndim or any(s is not None and s != d for s, d in zip(shape, data.shape)):
-        want = "(" + ", ".join("T" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
-        raise InputError(path, f"has shape {data.shape}", f"shape {want}: {expected}", dataset=name)
+    except (OSError, ValueError, TypeError, RuntimeError) as exc:
+        raise InputError(src.path, f"cannot read ({str(exc)[:80]})", expected, dataset=name) from None
     if not np.isfinite(data).all():
         idx = np.argwhere(~np.isfinite(data))[0]
-        raise InputError(path, f"non-finite value at index {tuple(int(i) for i in idx)}",
+        raise InputError(src.path, f"non-finite value at index {tuple(int(i) for i in idx)}",
                          "finite numbers", dataset=name)
     return np.ascontiguousarray(data)
 
 
-def _strings(h5, path, name, expected):
-    ds = _dataset(h5, path, name, expected)
-    if ds.dtype.kind not in "SOU" or ds.ndim != 1:
-        raise InputError(path, f"has dtype {ds.dtype} and shape {ds.shape}", expected, dataset=name)
+def _strings(src, name, expected):
+    """A 1-D string dataset (declared; read later by _read_strings)."""
+    ds = _dataset(src, name, expected)
+    if ds.dtype.kind not in "SOU" or ds.shape is None or len(ds.shape) != 1:
+        raise InputError(src.path, f"has dtype {ds.dtype} and shape {ds.shape}", expected, dataset=name)
+    return ds
+
+
+def _read_strings(src, ds, name, expected):
     try:
         values = ds.asstr()[()] if ds.dtype.kind in "SO" else ds[()]
-    except (OSError, ValueError, TypeError, UnicodeDecodeError):
-        raise InputError(path, "cannot read as UTF-8 strings", expected, dataset=name) from None
+    except (OSError, ValueError, TypeError, UnicodeDecodeError, RuntimeError):
+        raise InputError(src.path, "cannot read as UTF-8 strings", expected, dataset=name) from None
     return [str(v) for v in values]
 
 
-def _read_time(h5, path):
-    time = _float_array(h5, path, "time", (None,), "strictly increasing float times (T,), T >= 1")
+def _string_attr(src, obj, name, dataset):
+    """A scalar string attribute of ``obj`` (None when absent); a large or non-string
+    attribute is an InputError (it is never read in full)."""
+    if name not in obj.attrs:
+        return None
+    try:
+        shape = obj.attrs.get_id(name).shape
+        if declared_size(shape) > 1:
+            raise InputError(src.path, f"attribute {name} has shape {shape}", f"a single string {name}",
+                             dataset=dataset)
+        value = obj.attrs[name]
+    except (OSError, ValueError, TypeError, KeyError, RuntimeError):
+        raise InputError(src.path, f"cannot read attribute {name}", f"a string {name}", dataset=dataset) from None
+    if isinstance(value, np.ndarray):
+        value = value.reshape(-1)[0] if value.size else ""
+    return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
+
+
+TIME = "strictly increasing float times (T,), T >= 1"
+NAMES = "a 1-D string dataset of unique object names"
+MESH_NAMES = "a 1-D string dataset of mesh file names"
+
+
+def _read_time(src, ds):
+    time = _read_float(src, ds, "time", TIME)
     if time.shape[0] < 1:
-        raise InputError(path, "is empty", "at least one frame time", dataset="time")
+        raise InputError(src.path, "is empty", "at least one frame time", dataset="time")
+    if not np.isfinite(time[-1] - time[0]):
+        raise InputError(src.path, f"spans {float(time[0])!r} to {float(time[-1])!r}, beyond float64",
+                         "times whose span (last - first) is a finite number", dataset="time")
     steps = np.diff(time)
     if (steps <= 0).any():
         k = int(np.argmax(steps <= 0))
-        raise InputError(path, f"not strictly increasing at index {k + 1} ({float(time[k])!r} then {float(time[k + 1])!r})",
-                         "strictly increasing times", dataset="time")
+        raise InputError(src.path, f"not strictly increasing at index {k + 1} ({float(time[k])!r} then "
+                         f"{float(time[k + 1])!r})", "strictly increasing times", dataset="time")
     return time
 
 
-def _read_names(h5, path):
-    names = _strings(h5, path, "objects/name", "a 1-D string dataset of unique object names")
+def _read_names(src, names_ds, mesh_ds):
+    names = _read_strings(src, names_ds, "objects/name", NAMES)
     seen = set()
     for name in names:
         if name in seen:
-            raise InputError(path, f"duplicate object name {name!r}", "unique names",
-                             dataset="objects/name")
+            raise InputError(src.path, f"duplicate object name {name!r}", "unique names", dataset="objects/name")
         if not name:
-            raise InputError(path, "empty object name", "non-empty names", dataset="objects/name")
+            raise InputError(src.path, "empty object name", "non-empty names", dataset="objects/name")
         seen.add(name)
     mesh_entries = None
-    if "objects/mesh" in h5:
-        mesh_entries = _strings(h5, path, "objects/mesh", "a 1-D string dataset of mesh file names")
-        if len(mesh_entries) != len(names):
-            raise InputError(path, f"has {len(mesh_entries)} entries but objects/name has {len(names)}",
-                             "one mesh file name per object", dataset="objects/mesh")
+    if mesh_ds is not None:
+        mesh_entries = _read_strings(src, mesh_ds, "objects/mesh", MESH_NAMES)
     return names, mesh_entries
 
 
@@ -208,80 +330,133 @@ def quaternions_to_matrices(q, order):
     return r
 
 
-def _poses_from_quaternions(h5, path, n_frames, n_objects):
-    position = _float_array(h5, path, "poses/position", (n_frames, n_objects, 3),
-                            f"positions (T={n_frames}, N={n_objects}, 3)")
-    orientation = _float_array(h5, path, "poses/orientation", (n_frames, n_objects, 4),
-                               f"unit quaternions (T={n_frames}, N={n_objects}, 4)")
-    order = h5["poses/orientation"].attrs.get("quaternion_order")
+def _pose_datasets(src, n_frames, n_objects):
+    """("quaternion" | "matrix", {name: dataset}) with declared shapes checked; nothing read."""
+    has_quat = _exists(src, "poses/position") or _exists(src, "poses/orientation")
+    has_matrix = _exists(src, "poses/matrix")
+    if has_quat and has_matrix:
+        raise InputError(src.path, "has both poses/matrix and poses/position + poses/orientation",
+                         "one of the two pose encodings", dataset="poses")
+    if has_matrix:
+        return "matrix", {"poses/matrix": _numeric(src, "poses/matrix", (n_frames, n_objects, 4, 4),
+                                                   f"rigid 4x4 transforms (T={n_frames}, N={n_objects}, 4, 4)")}
+    if has_quat:
+        return "quaternion", {
+            "poses/position": _numeric(src, "poses/position", (n_frames, n_objects, 3),
+                                       f"positions (T={n_frames}, N={n_objects}, 3)"),
+            "poses/orientation": _numeric(src, "poses/orientation", (n_frames, n_objects, 4),
+                                          f"unit quaternions (T={n_frames}, N={n_objects}, 4)")}
+    raise InputError(src.path, "missing dataset", "poses/position + poses/orientation, or poses/matrix",
+                     dataset="poses")
+
+
+def lengths(vectors):
+    """Euclidean lengths of float64 (..., 3) vectors -> (...,), without overflow for any
+    finite input (scaled by the largest coordinate first)."""
+    scale = np.abs(vectors).max(axis=-1, initial=0.0)
+    safe = np.where(scale > 0, scale, 1.0)
+    with np.errstate(all="ignore"):
+        return scale * np.sqrt(((vectors / safe[..., None]) ** 2).sum(axis=-1))
+
+
+def _check_positions(src, position, dataset):
+    """Refuse positions (T, N, 3) farther than config.MAX_COORDINATE from the origin
+    (world coordinates that large overflow the exact tests)."""
+    magnitude = lengths(position)
+    if magnitude.size and not magnitude.max() <= config.MAX_COORDINATE:
+        t, o = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
+        raise InputError(src.path, f"position at frame {t}, object {o} lies {magnitude[t, o]:.3g} from the "
+                         "origin", f"positions within {config.MAX_COORDINATE:g} of the origin", dataset=dataset)
+
+
+def _poses_from_quaternions(src, datasets):
+    position = _read_float(src, datasets["poses/position"], "poses/position", "finite positions")
+    _check_positions(src, position, "poses/position")
+    orientation_ds = datasets["poses/orientation"]
+    orientation = _read_float(src, orientation_ds, "poses/orientation", "finite unit quaternions")
+    order = _string_attr(src, orientation_ds, "quaternion_order", "poses/orientation")
     if order is None:
-        raise InputError(path, "missing attribute quaternion_order", 'quaternion_order = "wxyz" or "xyzw"',
+        raise InputError(src.path, "missing attribute quaternion_order", 'quaternion_order = "wxyz" or "xyzw"',
                          dataset="poses/orientation")
-    order = order.decode() if isinstance(order, bytes) else str(order)
     if order not in QUATERNION_ORDERS:
-        raise InputError(path, f"unknown quaternion_order {order!r}", '"wxyz" or "xyzw"',
+        raise InputError(src.path, f"unknown quaternion_order {order!r}", '"wxyz" or "xyzw"',
                          dataset="poses/orientation")
     norm = np.linalg.norm(orientation, axis=-1)
     off = np.abs(norm - 1.0)
     if (off > config.QUATERNION_NORM_TOL).any():
         t, o = np.unravel_index(int(np.argmax(off)), off.shape)
-        raise InputError(path, f"quaternion of norm {norm[t, o]:.6g} at frame {t}, object {o}",
+        raise InputError(src.path, f"quaternion of norm {norm[t, o]:.6g} at frame {t}, object {o}",
                          f"unit quaternions (norm within {config.QUATERNION_NORM_TOL} of 1)",
                          dataset="poses/orientation")
     if (off > 1e-12).any():
         log.warning("%s:poses/orientation: normalising quaternions (largest norm error %.2g)",
-                    path, float(off.max()))
+                    escape_text(src.path), float(off.max()))
     rotation = quaternions_to_matrices(orientation / norm[..., None], order)
     return np.concatenate([rotation, position[..., None]], axis=-1)
 
 
-def _poses_from_matrices(h5, path, n_frames, n_objects):
-    matrix = _float_array(h5, path, "poses/matrix", (n_frames, n_objects, 4, 4),
-                          f"rigid 4x4 transforms (T={n_frames}, N={n_objects}, 4, 4)")
+def _poses_from_matrices(src, datasets):
+    matrix = _read_float(src, datasets["poses/matrix"], "poses/matrix", "finite rigid 4x4 transforms")
+    _check_positions(src, matrix[..., :3, 3], "poses/matrix")
     last_row = np.abs(matrix[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=-1)
     if (last_row > config.MATRIX_LAST_ROW_TOL).any():
         t, o = np.unravel_index(int(np.argmax(last_row)), last_row.shape)
-        raise InputError(path, f"last row is {matrix[t, o, 3].tolist()} at frame {t}, object {o}",
+        raise InputError(src.path, f"last row is {matrix[t, o, 3].tolist()} at frame {t}, object {o}",
                          "last row 0 0 0 1", dataset="poses/matrix")
     rotation = matrix[..., :3, :3]
     gram = np.einsum("...ki,...kj->...ij", rotation, rotation)
     error = np.abs(gram - np.eye(3)).max(axis=(-2, -1))
-    det = np.linalg.det(rotation)
-    bad = (error > config.ROTATION_ORTHONORMAL_TOL) | (det <= 0)
+    det = np.linalg.det(rotation) if rotation.size else np.ones(rotation.shape[:-2])
+    bad = ~(error <= config.ROTATION_ORTHONORMAL_TOL) | ~(det > 0)
     if bad.any():
         t, o = np.argwhere(bad)[0]
-        raise InputError(path, f"not a rigid transform at frame {t}, object {o} "
+        raise InputError(src.path, f"not a rigid transform at frame {t}, object {o} "
                          f"(|R^T R - I| = {error[t, o]:.3g}, det = {det[t, o]:.3g})",
                          f"a rotation (orthonormal within {config.ROTATION_ORTHONORMAL_TOL}, det > 0) "
                          "and a translation", dataset="poses/matrix")
     return np.ascontiguousarray(matrix[..., :3, :])
 
 
-def load_trajectory(path):
-    """Read and validate a trajectory file (SPEC §2.2)."""
+def _trajectory_bytes(n_frames, n_objects, n_string_columns):
+    """Estimated peak memory (bytes) of reading and scanning a trajectory of these
+    declared sizes (see config.POSE_BYTES and friends)."""
+    return (n_frames * config.NUMBER_BYTES + n_objects * n_string_columns * config.STRING_BYTES
+            + n_frames * n_objects * config.POSE_BYTES)
+
+
+def load_trajectory(path, allow_external=False, max_memory=None):
+    """Read and validate a trajectory file (see README, "Trajectory").
+
+    Declared shapes are checked, and the memory they need estimated against
+    ``max_memory`` (bytes or "4G"; default: files.memory_limit()), before any
+    data is read. Unless ``allow_external``, data stored outside the file
+    (external links, external storage, virtual datasets) is refused. Returns a
+    Trajectory; raises InputError for anything else that is not as described.
+    """
     path = Path(path)
-    with _open_hdf5(path) as h5:
+    with open_hdf5(path, TRAJECTORY) as h5, np.errstate(all="ignore"):
+        src = _Source(h5, path, allow_external)
         try:
-            time = _read_time(h5, path)
-            names, mesh_entries = _read_names(h5, path)
-            has_quat = "poses/position" in h5 or "poses/orientation" in h5
-            has_matrix = "poses/matrix" in h5
-            if has_quat and has_matrix:
-                raise InputError(path, "has both poses/matrix and poses/position + poses/orientation",
-                                 "one of the two pose encodings", dataset="poses")
-            if has_matrix:
-                poses = _poses_from_matrices(h5, path, time.shape[0], len(names))
-            elif has_quat:
-                poses = _poses_from_quaternions(h5, path, time.shape[0], len(names))
-            else:
-                raise InputError(path, "missing dataset",
-                                 "poses/position + poses/orientation, or poses/matrix", dataset="poses")
+            time_ds = _numeric(src, "time", (None,), TIME)
+            names_ds = _strings(src, "objects/name", NAMES)
+            mesh_ds = _strings(src, "objects/mesh", MESH_NAMES) if _exists(src, "objects/mesh") else None
+            n_frames, n_objects = time_ds.shape[0], names_ds.shape[0]
+            if n_frames < 1:
+                raise InputError(path, "is empty", "at least one frame time", dataset="time")
+            if mesh_ds is not None and mesh_ds.shape[0] != n_objects:
+                raise InputError(path, f"has {mesh_ds.shape[0]} entries but objects/name has {n_objects}",
+                                 "one mesh file name per object", dataset="objects/mesh")
+            encoding, pose_ds = _pose_datasets(src, n_frames, n_objects)
+            check_memory(path, _trajectory_bytes(n_frames, n_objects, 1 + (mesh_ds is not None)),
+                         memory_limit(max_memory), f"a trajectory of {n_frames} frames and {n_objects} objects")
+            time = _read_time(src, time_ds)
+            names, mesh_entries = _read_names(src, names_ds, mesh_ds)
+            poses = (_poses_from_matrices if encoding == "matrix" else _poses_from_quaternions)(src, pose_ds)
         except InputError:
             raise
-        except (OSError, KeyError, RuntimeError) as exc:
-            raise InputError(path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") \
-                from None
-    return Trajectory(path, time, names, mesh_entries, poses)
+        except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
+            raise InputError(path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") from None
+    return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)))
 
 
 # --- scene: meshes + trajectory ------------------------------------------------------------
@@ -308,10 +483,39 @@ def _resolve_mesh(files, entry, traj_path, dataset):
                      dataset=dataset)
 
 
-def load_scene(meshes_folder, trajectory_path):
-    """Validate and load everything a scan needs."""
+def input_files(meshes_folder, trajectory_path):
+    """The files a scan reads: the trajectory and every mesh file of the folder (for
+    refusing an output path that is one of them). A folder that cannot be listed
+    contributes nothing here; loading reports it."""
+    try:
+        meshes = list(mesh_files(meshes_folder).values())
+    except InputError:
+        meshes = []
+    return [Path(trajectory_path)] + meshes
+
+
+def _check_reach(scene_names, meshes, object_mesh, poses, path, dataset):
+    """Refuse a scene where |position| + |vertex| of some object at some frame exceeds
+    config.MAX_COORDINATE (world coordinates up to that size cannot overflow)."""
+    radius = np.array([float(lengths(m.vertices).max(initial=0.0)) for m in meshes])[object_mesh]
+    distance = lengths(poses[..., 3])                                        # (T, N)
+    reach = distance + radius[None, :]
+    if reach.size and not reach.max() <= config.MAX_COORDINATE:
+        t, o = np.unravel_index(int(np.argmax(reach)), reach.shape)
+        raise InputError(path, f"object {scene_names[o]!r} at frame {t} reaches {reach[t, o]:.3g} from the "
+                         f"origin (|position| {distance[t, o]:.3g} + mesh radius "
+                         f"{radius[o]:.3g})", f"world coordinates of magnitude at most {config.MAX_COORDINATE:g}",
+                         dataset=dataset)
+
+
+def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=None):
+    """Validate and load everything a scan needs.
+
+    ``allow_external`` and ``max_memory`` are those of load_trajectory; the memory
+    estimate is checked again with the static meshes' objects added.
+    """
     files = mesh_files(meshes_folder)
-    traj = load_trajectory(trajectory_path)
+    traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory)
     dataset = "objects/name" if traj.mesh_files is None else "objects/mesh"
     entries = traj.names if traj.mesh_files is None else traj.mesh_files
     used = [_resolve_mesh(files, entry, traj.path, dataset) for entry in entries]
@@ -322,15 +526,19 @@ def load_scene(meshes_folder, trajectory_path):
         if p.stem in taken:
             raise InputError(traj.path, f"object name {p.stem!r} is also an unused mesh file",
                              "names that do not clash with static meshes", dataset="objects/name")
+    n_frames, n_objects = traj.time.shape[0], len(traj.names) + len(static_paths)
+    check_memory(traj.path, _trajectory_bytes(n_frames, n_objects, 2), memory_limit(max_memory),
+                 f"a scene of {n_frames} frames and {n_objects} objects")
     mesh_paths = sorted(used_set) + static_paths
     meshes = [load_mesh(p) for p in mesh_paths]
     index = {p: i for i, p in enumerate(mesh_paths)}
     object_mesh = np.array([index[p] for p in used + static_paths], dtype=np.int64)
     names = list(traj.names) + [p.stem for p in static_paths]
-    n_frames = traj.time.shape[0]
     identity = np.zeros((3, 4))
     identity[:, :3] = np.eye(3)
     static_poses = np.broadcast_to(identity, (n_frames, len(static_paths), 3, 4))
     poses = np.ascontiguousarray(np.concatenate([traj.poses, static_poses], axis=1))
+    _check_reach(names, meshes, object_mesh, poses, traj.path,
+                 traj.pose_dataset)
     static = (poses == identity).all(axis=(0, 2, 3))
     return Scene(names, meshes, object_mesh, traj.time, poses, static, traj.path)

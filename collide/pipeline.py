@@ -21,7 +21,7 @@ from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, int
                        intervals_from_steps, sort_columns)
 from .discrete import ALL_PAIRS, ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
 from .errors import InputError, UsageError
-from .load import load_scene
+from .load import input_files, load_scene
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
@@ -336,22 +336,24 @@ def _check_options(mode, interpolation, workers):
 def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          triangle_pairs=False, frames=None, workers=None, scheduler=None,
          time_tol=config.TIME_TOL, interpolation="screw", warn_angle=config.SCREW_WARN_DEG,
-         output=None, progress=None, command=None):
+         output=None, progress=None, command=None, max_memory=None, allow_external_data=False):
     """Find when, where and for how long the meshes touch along the trajectory.
 
     Parameters mirror ``collide scan``; ``time_tol`` is a fraction of the frame
     interval; ``interpolation`` ("screw" or "linear-vertex") the motion between
     frames in continuous mode; ``warn_angle`` (degrees per frame) where screw
     motion warns of under-sampling. ``progress(done, total)`` is called as work
-    completes. With ``output`` the result is also written there (atomically).
-    Returns a ScanResult.
+    completes. With ``output`` the result is also written there (atomically; never
+    over an input). ``max_memory`` and ``allow_external_data``: see
+    load.load_trajectory. Returns a ScanResult.
     """
     workers = _check_options(mode, interpolation, workers)
+    inputs = input_files(meshes, trajectory) if output is not None else []
     if output is not None:
-        check_output_path(output)  # fail before the work, not after
+        check_output_path(output, inputs)  # fail before the work, not after
     timings = {}
     start = time.perf_counter()
-    scene = load_scene(meshes, trajectory)
+    scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory)
     index = parse_frames(frames, scene.time.shape[0])
     poses = np.ascontiguousarray(scene.poses[index])
     frame_time = scene.time[index]
@@ -412,5 +414,5 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         "versions": result.versions,
     }
     if output is not None:
-        write_contacts(output, result)
+        write_contacts(output, result, inputs)
     return result

@@ -3,10 +3,14 @@ contact intervals as bars over time, swept-only contacts hatched, frame ticks.
 
 matplotlib is optional (``pip install collide[plot]``); it is imported only here.
 """
+import io
 from pathlib import Path
 
-from .errors import UsageError
-from .output import atomic_path
+import numpy as np
+
+from . import config
+from .errors import InputError, UsageError
+from .output import write_bytes_atomic
 from .report import timeline
 
 FRAME_COLOUR = "#1f77b4"
@@ -25,12 +29,24 @@ def _pyplot():
     return plt
 
 
-def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
-    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically).
+def _check_drawable(cf, source):
+    """Refuse times beyond config.PLOT_MAX_TIME in magnitude (matplotlib cannot place them)."""
+    times = np.concatenate([cf.frame_time, cf.contacts["t_begin"], cf.contacts["t_end"]])
+    largest = float(np.abs(times).max()) if times.size else 0.0
+    if not largest <= config.PLOT_MAX_TIME:
+        raise InputError(source, f"has a time of magnitude {largest:g}, too large to draw",
+                         f"times within {config.PLOT_MAX_TIME:g} of 0", dataset="frames/time")
+
+
+def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS, inputs=(), source="contacts"):
+    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically;
+    never over one of ``inputs``, e.g. the contacts file itself). ``source`` names the
+    contacts file in messages.
 
     One row per object pair; with more than ``max_pairs`` pairs only the
     ``max_pairs`` that touch first are drawn (the title says so).
     """
+    _check_drawable(cf, source)
     plt = _pyplot()
     from matplotlib.patches import Patch
     rows = timeline(cf)
@@ -52,7 +68,7 @@ def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
                            facecolors=SWEPT_COLOUR if swept else FRAME_COLOUR,
                            hatch="///" if swept else None, edgecolor="black", linewidth=0.4)
     ax.set_yticks(range(len(labels)))
-    ax.set_yticklabels(labels, fontsize=8 if len(labels) > 20 else 10)
+    ax.set_yticklabels(labels, fontsize=8 if len(labels) > 20 else 10, parse_math=False)  # names: no $math$
     ax.set_ylim(len(labels) - 0.5 if labels else 0.5, -0.5)
     ax.set_xlim(t0 - 0.01 * span, t1 + 0.01 * span)
     if 1 < times.size <= 400:
@@ -63,7 +79,7 @@ def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
     mode = cf.attrs.get("mode", "?")
     shown = f"{n_pairs} object pairs" if n_pairs == len(labels) else \
         f"the {len(labels)} of {n_pairs} object pairs that touch first"
-    ax.set_title(title or f"{shown} in contact ({mode} mode)", fontsize=11, loc="left")
+    ax.set_title(title or f"{shown} in contact ({mode} mode)", fontsize=11, loc="left", parse_math=False)
     if not labels:
         ax.text(0.5, 0.5, "no contacts", transform=ax.transAxes, ha="center", va="center", fontsize=14)
     ax.legend(handles=[Patch(facecolor=FRAME_COLOUR, edgecolor="black", label="contact seen at a frame"),
@@ -72,7 +88,8 @@ def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS):
               loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     output = Path(output)
-    with atomic_path(output) as tmp:
-        fig.savefig(tmp, format="png")
+    png = io.BytesIO()
+    fig.savefig(png, format="png")
     plt.close(fig)
+    write_bytes_atomic(output, png.getbuffer(), inputs)
     return output

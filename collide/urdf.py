@@ -34,7 +34,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError, UsageError
-from .load import _float_array, _strings, load_mesh
+from .files import open_hdf5
+from .load import _numeric, _read_float, _read_strings, _Source, _strings, load_mesh
 from .output import atomic_path, check_output_path
 
 log = logging.getLogger("collide")
@@ -311,16 +312,16 @@ def _is_hdf5(path):
 
 
 def _read_joints_hdf5(path):
-    import h5py
-    try:
-        h5 = h5py.File(path, "r")
-    except OSError as exc:
-        raise InputError(path, f"cannot open as HDF5 ({_first_line(exc)})", JOINTS_EXPECTED) from None
+    h5 = open_hdf5(path, JOINTS_EXPECTED)
     with h5:
-        time = _float_array(h5, path, "time", (None,), "frame times, float (T,)")
-        names = _strings(h5, path, "joints/name", "joint names, str (J,)")
-        position = _float_array(h5, path, "joints/position", (time.shape[0], len(names)),
-                                "joint positions, one row per time and one column per joints/name")
+        src = _Source(h5, Path(path), False)
+        expected = "frame times, float (T,)"
+        time = _read_float(src, _numeric(src, "time", (None,), expected), "time", expected)
+        expected = "joint names, str (J,)"
+        names = _read_strings(src, _strings(src, "joints/name", expected), "joints/name", expected)
+        expected = "joint positions, one row per time and one column per joints/name"
+        position = _read_float(src, _numeric(src, "joints/position", (time.shape[0], len(names)), expected),
+                               "joints/position", expected)
         unit = h5["time"].attrs.get("unit")
     unit = unit.decode() if isinstance(unit, bytes) else (None if unit is None else str(unit))
     _check_time(time, path, "time", lambda k: f"index {k}")

@@ -1,5 +1,8 @@
-"""Contact tables: column layouts (SPEC §4) and frame hits -> contact intervals."""
+"""Contact tables: column layouts of the output and kernel rows -> contact intervals."""
 import numpy as np
+
+from .rows import (HIT_A, HIT_B, HIT_FRAME, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP,
+                   SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_BEGIN, T_END, TIMES_WIDTH)
 
 #: contacts/ columns, in file order: name -> dtype
 CONTACT_COLUMNS = {
@@ -66,7 +69,7 @@ def _group_by_pair(rows, a_col, b_col):
 def intervals_from_hits(hits, times):
     """Discrete contact intervals from frame hits.
 
-    hits int64 (H, 6): frame, object_a, object_b, n_pairs, tri_a, tri_b.
+    hits int64 (H, HIT_WIDTH): frame hits (rows.py).
     times float64 (T,) analysed frame times.
     Returns (columns, where): contact columns sorted per SPEC §4 with one row
     per maximal run of consecutive frames of one object pair (points NaN, for
@@ -74,15 +77,15 @@ def intervals_from_hits(hits, times):
     from_hit bool (E,)): the contact's first moment as frame/step index and
     fraction of the step, and whether (tri_a, tri_b) came from a frame hit.
     """
-    hits = np.asarray(hits, dtype=np.int64).reshape(-1, 6)
+    hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
     rows = []
-    for a, b, group in _group_by_pair(hits, 1, 2):
-        group = group[np.argsort(group[:, 0], kind="stable")]
-        starts, ends = frame_runs(group[:, 0])
+    for a, b, group in _group_by_pair(hits, HIT_A, HIT_B):
+        group = group[np.argsort(group[:, HIT_FRAME], kind="stable")]
+        starts, ends = frame_runs(group[:, HIT_FRAME])
         for s, e in zip(starts, ends):
-            f0, f1 = group[s, 0], group[e, 0]
-            rows.append((a, b, times[f0], times[f1], f0, f1, KIND_FRAME, group[s, 4], group[s, 5],
-                         np.nan, np.nan, np.nan, f0, 0.0, True))
+            f0, f1 = group[s, HIT_FRAME], group[e, HIT_FRAME]
+            rows.append((a, b, times[f0], times[f1], f0, f1, KIND_FRAME, group[s, HIT_TRI_A],
+                         group[s, HIT_TRI_B], np.nan, np.nan, np.nan, f0, 0.0, True))
     return _finish(rows)
 
 
@@ -104,30 +107,33 @@ def step_time(times, step, u):
     return times[step] + u * (times[step + 1] - times[step])
 
 
-def intervals_from_steps(steps, hits, times):
+def intervals_from_steps(ids, fractions, hits, times):
     """Continuous contact intervals.
 
-    steps float64 (R, 7): step k, object_a, object_b, u_begin, u_end, tri_a, tri_b
-    (u in [0, 1] of the step from frame k to k+1), from swept.scan_intervals.
-    hits int64 (H, 6): exact contacts at frame poses, as for intervals_from_hits.
+    ids int64 (R, SWEPT_WIDTH), fractions float64 (R, TIMES_WIDTH): swept contacts
+    (rows.py; fractions u in [0, 1] of the step from frame k to k+1), from
+    swept.scan_intervals. hits int64 (H, HIT_WIDTH): exact contacts at frame poses,
+    as for intervals_from_hits.
     Everything is merged per object pair into maximal intervals; kind is 0 when
     a frame pose inside the interval shows the contact, 1 when only the swept
     test saw it. Returns (columns, where) as intervals_from_hits.
     """
-    steps = np.asarray(steps, dtype=np.float64).reshape(-1, 7)
-    hits = np.asarray(hits, dtype=np.int64).reshape(-1, 6)
+    ids = np.asarray(ids, dtype=np.int64).reshape(-1, SWEPT_WIDTH)
+    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1, TIMES_WIDTH)
+    hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
     # items: a, b, begin, end, tri_a, tri_b, is_frame_contact, step, u
     items = []
-    for k, a, b, u0, u1, ta, tb in steps.tolist():
-        k = int(k)
+    columns = ids[:, [SWEPT_STEP, SWEPT_A, SWEPT_B, SWEPT_TRI_A, SWEPT_TRI_B]].tolist()
+    spans = fractions[:, [T_BEGIN, T_END]].tolist()
+    for (k, a, b, ta, tb), (u0, u1) in zip(columns, spans):
         begin = step_time(times, k, u0)
         end = step_time(times, k, u1)
         if 0.0 < u0 < 1.0:  # keep the conservative side under rounding
             begin = np.nextafter(begin, -np.inf)
         if 0.0 < u1 < 1.0:
             end = np.nextafter(end, np.inf)
-        items.append((int(a), int(b), begin, end, int(ta), int(tb), False, k, u0))
-    for f, a, b, _, ta, tb in hits.tolist():
+        items.append((a, b, begin, end, ta, tb, False, k, u0))
+    for f, a, b, ta, tb in hits[:, [HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B]].tolist():
         items.append((a, b, times[f], times[f], ta, tb, True, f, 0.0))
     items.sort(key=lambda it: (it[0], it[1], it[2], not it[6], it[4], it[5]))
     rows = []

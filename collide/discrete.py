@@ -6,12 +6,13 @@ object's root box in the world, sweeps and prunes to candidate object pairs,
 descends each pair's BVHs (broad.overlapping_leaves with RULE_POSE) and tests
 triangle pairs exactly (narrow.intersecting_triangles).
 
-Output rows (int64):
-- hits (H, 6): frame, object_a, object_b, number of intersecting triangle
-  pairs, tri_a, tri_b (the lexicographically smallest intersecting pair).
-  With ``first_only`` a pair's search stops at its first intersecting
+Output rows (int64, layouts in rows.py):
+- hits (H, HIT_WIDTH): frame, object_a, object_b, number of intersecting
+  triangle pairs, tri_a, tri_b (the lexicographically smallest intersecting
+  pair). With ``first_only`` a pair's search stops at its first intersecting
   triangle pair: the count is then 1 and (tri_a, tri_b) that first pair.
-- pairs (P, 5): frame, object_a, object_b, tri_a, tri_b (only when collected).
+- pairs (P, PAIR_WIDTH): frame, object_a, object_b, tri_a, tri_b (only when
+  collected).
 """
 from typing import NamedTuple
 
@@ -22,6 +23,8 @@ from . import config
 from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune
 from .motion import MOTION_WIDTH, swept_box
 from .narrow import append_row, intersecting_triangles
+from .rows import (HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, PAIR_A, PAIR_B,
+                   PAIR_FRAME, PAIR_TRI_A, PAIR_TRI_B, PAIR_WIDTH)
 from .packed import to_world
 
 #: pair_filter values: which object pairs a kernel call tests
@@ -122,22 +125,22 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,);
     first_only must be False when collect_pairs is True.
-    Returns (hits int64 (H, 6), pairs int64 (P, 5)); see module docstring.
+    Returns (hits int64 (H, HIT_WIDTH), pairs int64 (P, PAIR_WIDTH)): rows.py layouts.
     """
     n_objects = poses.shape[1]
     world = np.empty((ps.world_start[n_objects], 3))
     stamp = np.full(n_objects, -1, np.int64)
     margin = np.empty(n_objects)
-    hits = np.empty((16, 6), np.int64)
+    hits = np.empty((16, HIT_WIDTH), np.int64)
     n_hits = 0
-    pairs = np.empty((16, 5), np.int64)
+    pairs = np.empty((16, PAIR_WIDTH), np.int64)
     n_pairs = 0
     leaves = np.empty((256, 2), np.int64)
     tri = np.empty((64, 2), np.int64)
     scratch = pair_scratch()
     still = np.zeros((n_objects, MOTION_WIDTH))
-    hit = np.empty(6, np.int64)
-    row = np.empty(5, np.int64)
+    hit = np.empty(HIT_WIDTH, np.int64)
+    row = np.empty(PAIR_WIDTH, np.int64)
     for f in range(frame_start, frame_stop):
         rp = poses[f]
         object_margins(ps, rp, rp, margin)
@@ -161,19 +164,19 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
             if n_tri == 0:
                 continue
             tri_a, tri_b = _smallest_pair(tri, n_tri)
-            hit[0] = f
-            hit[1] = a
-            hit[2] = b
-            hit[3] = n_tri
-            hit[4] = tri_a
-            hit[5] = tri_b
+            hit[HIT_FRAME] = f
+            hit[HIT_A] = a
+            hit[HIT_B] = b
+            hit[HIT_PAIRS] = n_tri
+            hit[HIT_TRI_A] = tri_a
+            hit[HIT_TRI_B] = tri_b
             hits, n_hits = append_row(hits, n_hits, hit)
             if collect_pairs:
                 for k in range(n_tri):
-                    row[0] = f
-                    row[1] = a
-                    row[2] = b
-                    row[3] = tri[k, 0]
-                    row[4] = tri[k, 1]
+                    row[PAIR_FRAME] = f
+                    row[PAIR_A] = a
+                    row[PAIR_B] = b
+                    row[PAIR_TRI_A] = tri[k, 0]
+                    row[PAIR_TRI_B] = tri[k, 1]
                     pairs, n_pairs = append_row(pairs, n_pairs, row)
     return hits[:n_hits].copy(), pairs[:n_pairs].copy()

@@ -25,6 +25,8 @@ from .load import input_files, load_scene
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
+from .rows import (HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, PAIR_WIDTH, SWEPT_A,
+                   SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_END, TIMES_WIDTH)
 from .swept import scan_intervals
 
 log = logging.getLogger("collide")
@@ -162,7 +164,7 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
 
 
 def _run_discrete(ps, poses, static, collect_pairs, workers, progress, scheduler=None):
-    """Frame hits (H, 6) and triangle pairs (P, 5) of all frames.
+    """Frame hits (H, HIT_WIDTH) and triangle pairs (P, PAIR_WIDTH) of all frames (rows.py).
 
     Without collect_pairs each object pair's search stops at its first
     intersecting triangle pair (see smallest_pairs_at_frames for the reported pair).
@@ -177,7 +179,7 @@ def _run_discrete(ps, poses, static, collect_pairs, workers, progress, scheduler
         s_hits, s_pairs = scan_frames(ps, poses, static, 0, 1, ONLY_STATIC_PAIRS, collect_pairs, first_only)
         hits.append(_repeat_over_frames(s_hits, n_frames))
         pairs.append(_repeat_over_frames(s_pairs, n_frames))
-    return np.concatenate(hits).reshape(-1, 6), np.concatenate(pairs).reshape(-1, 5)
+    return np.concatenate(hits).reshape(-1, HIT_WIDTH), np.concatenate(pairs).reshape(-1, PAIR_WIDTH)
 
 
 def smallest_pairs_at_frames(contacts, where, ps, poses, static):
@@ -187,34 +189,42 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
     steps, _, from_hit = where
     for f in np.unique(steps[from_hit]):
         hits, _ = scan_frames(ps, poses, static, f, f + 1, ALL_PAIRS, False, False)
-        smallest = {(a, b): (ta, tb) for _, a, b, _, ta, tb in hits.tolist()}
+        smallest = {(a, b): (ta, tb) for a, b, ta, tb in hits[:, [HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B]].tolist()}
         for k in np.flatnonzero(from_hit & (steps == f)):
             contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
 def _run_swept(ps, poses, static, interpolation, time_tol, dist_tol, workers, progress, scheduler=None):
-    """Contact rows (R, 7) of every motion step (static pairs excluded: they never move)."""
+    """Swept contacts (ids (R, SWEPT_WIDTH), fractions (R, TIMES_WIDTH); rows.py) of every
+    motion step (static pairs excluded: they never move)."""
     n_steps = poses.shape[0] - 1
     if n_steps < 1:
-        return np.zeros((0, 7))
+        return np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH))
     results = _run_chunks(scan_intervals, (ps, poses, static),
                           (SKIP_STATIC_PAIRS, INTERPOLATIONS[interpolation], time_tol, dist_tol),
                           n_steps, workers, progress, scheduler)
-    return np.concatenate(results).reshape(-1, 7)
+    return (np.concatenate([r[0] for r in results]).reshape(-1, SWEPT_WIDTH),
+            np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH))
 
 
 def _static_steps(hits, static, n_steps):
-    """Step rows (R, 7) for pairs of static objects: touching at frame 0 means touching
-    throughout (the swept kernel skips them since they never move)."""
-    first = hits[(hits[:, 0] == 0) & static[hits[:, 1]] & static[hits[:, 2]]]
-    rows = [(k, a, b, 0.0, 1.0, ta, tb) for _, a, b, _, ta, tb in first.tolist() for k in range(n_steps)]
-    return np.array(rows, dtype=np.float64).reshape(-1, 7)
+    """Swept contacts (ids, fractions) of pairs of static objects: touching at frame 0 means
+    touching throughout (the swept kernel skips them since they never move)."""
+    first = hits[(hits[:, HIT_FRAME] == 0) & static[hits[:, HIT_A]] & static[hits[:, HIT_B]]]
+    ids = np.zeros((first.shape[0] * n_steps, SWEPT_WIDTH), np.int64)
+    for column, source in ((SWEPT_A, HIT_A), (SWEPT_B, HIT_B), (SWEPT_TRI_A, HIT_TRI_A), (SWEPT_TRI_B, HIT_TRI_B)):
+        ids[:, column] = np.repeat(first[:, source], n_steps)
+    ids[:, SWEPT_STEP] = np.tile(np.arange(n_steps), first.shape[0])
+    fractions = np.zeros((ids.shape[0], TIMES_WIDTH))
+    fractions[:, T_END] = 1.0
+    return ids, fractions
 
 
 def _repeat_over_frames(rows, n_frames):
-    """Rows of frame 0 (first column = frame) repeated for every frame."""
+    """Rows of frame 0 (hits or triangle pairs: column HIT_FRAME = PAIR_FRAME is the frame)
+    repeated for every frame."""
     out = np.repeat(rows[None, :, :], n_frames, axis=0)
-    out[:, :, 0] = np.arange(n_frames)[:, None]
+    out[:, :, HIT_FRAME] = np.arange(n_frames)[:, None]
     return out.reshape(-1, rows.shape[1])
 
 
@@ -373,10 +383,11 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
     hits, pair_rows = _run_discrete(ps, poses, scene.static, triangle_pairs, workers, work, scheduler)
     if continuous:
-        steps = _run_swept(ps, poses, scene.static, interpolation, time_tol, dist_tol, workers, work,
-                           scheduler)
-        steps = np.concatenate([steps, _static_steps(hits, scene.static, poses.shape[0] - 1)])
-        contacts, where = intervals_from_steps(steps, hits, frame_time)
+        ids, fractions = _run_swept(ps, poses, scene.static, interpolation, time_tol, dist_tol, workers, work,
+                                    scheduler)
+        static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
+        contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
+                                               np.concatenate([fractions, static_fractions]), hits, frame_time)
     else:
         contacts, where = intervals_from_hits(hits, frame_time)
     if not triangle_pairs:
@@ -402,8 +413,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         stats={**timings, "frames": int(index.size), "objects": len(scene.names),
                "contacts": int(contacts["object_a"].size),
                "swept_only_contacts": int((contacts["kind"] == KIND_SWEPT).sum()),
-               "frames_in_contact": int(np.unique(hits[:, 0]).size),
-               "triangle_pairs": int(hits[:, 3].sum()) if triangle_pairs else None},
+               "frames_in_contact": int(np.unique(hits[:, HIT_FRAME]).size),
+               "triangle_pairs": int(hits[:, HIT_PAIRS].sum()) if triangle_pairs else None},
     )
     result.provenance = {
         "command": command or f"collide.scan({str(meshes)!r}, {str(trajectory)!r}, mode={mode!r})",

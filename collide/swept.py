@@ -24,8 +24,9 @@ sub-steps (motion.substeps), each a small screw motion of its own with tight
 boxes: the first sub-step (in time) with a contact gives t_first, the last
 one t_last.
 
-Output rows float64 (R, 7): step k, object_a, object_b, t_begin, t_end (in
-[0, 1] of the step), tri_a, tri_b (the pair touching first).
+Output (layouts in rows.py): ids int64 (R, SWEPT_WIDTH): step k, object_a,
+object_b, tri_a, tri_b (the pair touching first); times float64 (R,
+TIMES_WIDTH): t_begin, t_end, fractions of the step.
 """
 from typing import NamedTuple
 
@@ -40,6 +41,8 @@ from .motion import (M_ETA, MOTION_WIDTH, pose_at, screw_motion, sphere_deviatio
                      substeps)
 from .narrow import append_row, swept_contact_window
 from .packed import to_world
+from .rows import (SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_BEGIN, T_END,
+                   TIMES_WIDTH)
 
 
 @njit(cache=True)
@@ -174,7 +177,8 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interp
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,); interpolation:
     a motion.INTERPOLATIONS code; time_tol in units of the step; dist_tol in length
-    units. Returns float64 (R, 7), see the module docstring.
+    units. Returns (ids int64 (R, SWEPT_WIDTH), times float64 (R, TIMES_WIDTH)), see
+    the module docstring.
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
@@ -183,14 +187,16 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interp
     stamp0 = np.full(n_objects, -1, np.int64)
     stamp1 = np.full(n_objects, -1, np.int64)
     margin = np.empty(n_objects)
-    rows = np.empty((16, 7))
+    ids = np.empty((16, SWEPT_WIDTH), np.int64)
+    times = np.empty((16, TIMES_WIDTH))
     n_rows = 0
     leaves = np.empty((256, 2), np.int64)
     tri_pairs = np.empty((64, 2), np.int64)  # scratch of swept_contact_window
     pair = pair_scratch()
     sub = _sub_step_buffers(n_objects, n_world)
     motion = np.empty((n_objects, MOTION_WIDTH))
-    row = np.empty(7)
+    id_row = np.empty(SWEPT_WIDTH, np.int64)
+    time_row = np.empty(TIMES_WIDTH)
     for k in range(step_start, step_stop):
         rp0 = poses[k]
         rp1 = poses[k + 1]
@@ -228,12 +234,13 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interp
                                                                    tri_pairs)
             if t_first == np.inf:
                 continue
-            row[0] = k
-            row[1] = a
-            row[2] = b
-            row[3] = t_first
-            row[4] = t_last
-            row[5] = tri_a
-            row[6] = tri_b
-            rows, n_rows = append_row(rows, n_rows, row)
-    return rows[:n_rows].copy()
+            id_row[SWEPT_STEP] = k
+            id_row[SWEPT_A] = a
+            id_row[SWEPT_B] = b
+            id_row[SWEPT_TRI_A] = tri_a
+            id_row[SWEPT_TRI_B] = tri_b
+            time_row[T_BEGIN] = t_first
+            time_row[T_END] = t_last
+            ids, _ = append_row(ids, n_rows, id_row)
+            times, n_rows = append_row(times, n_rows, time_row)
+    return ids[:n_rows].copy(), times[:n_rows].copy()

@@ -1,0 +1,41 @@
+"""Layouts of the rows the scan kernels hand back to Python, by column name.
+
+- Frame hits, int64 (H, HIT_WIDTH): one row per object pair in contact at a frame
+  (discrete.scan_frames).
+- Triangle pairs, int64 (P, PAIR_WIDTH): one row per intersecting triangle pair at a
+  frame (discrete.scan_frames, with --triangle-pairs).
+- Swept contacts, one row per object pair and motion step in which they touch
+  (swept.scan_intervals), as two arrays of equal length: ids int64 (R, SWEPT_WIDTH)
+  and times float64 (R, TIMES_WIDTH), fractions of the step.
+
+Object indices index the scene's objects; triangle indices are the mesh file's faces.
+"""
+
+# frame hits
+HIT_FRAME = 0      #: analysed frame index
+HIT_A = 1          #: object_a (< object_b)
+HIT_B = 2          #: object_b
+HIT_PAIRS = 3      #: intersecting triangle pairs found (1 when the search stopped at the first)
+HIT_TRI_A = 4      #: a touching triangle pair: the smallest (or the first found)
+HIT_TRI_B = 5
+HIT_WIDTH = 6
+
+# triangle pairs
+PAIR_FRAME = 0
+PAIR_A = 1
+PAIR_B = 2
+PAIR_TRI_A = 3
+PAIR_TRI_B = 4
+PAIR_WIDTH = 5
+
+# swept contacts: ids
+SWEPT_STEP = 0     #: step k: from analysed frame k to k + 1
+SWEPT_A = 1
+SWEPT_B = 2
+SWEPT_TRI_A = 3    #: the smallest triangle pair touching at the first contact
+SWEPT_TRI_B = 4
+SWEPT_WIDTH = 5
+# swept contacts: times
+T_BEGIN = 0        #: first contact, fraction of the step (conservative: never late)
+T_END = 1          #: last contact, fraction of the step (never early)
+TIMES_WIDTH = 2

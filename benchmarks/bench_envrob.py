@@ -22,7 +22,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from collide.discrete import SKIP_STATIC_PAIRS, scan_frames  # noqa: E402
+from collide.discrete import scan_frames  # noqa: E402
+from collide.filters import build_filters  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.packed import pack_scene  # noqa: E402
 from collide.pipeline import _run_discrete  # noqa: E402
@@ -38,23 +39,25 @@ def run_collide(env, rob, rot, trans, split, workers):
     poses[:, 0, :, 3] = trans
     poses[:, 1, :, :3] = np.eye(3)
     static = np.array([False, True])
+    filters = build_filters(["rob", "env"])
+    pairs = filters.kernel_filter()
     start = time.perf_counter()
     ps, build_s = pack_scene([rob, env], np.array([0, 1]), split)
-    scan_frames(ps, poses, static, 0, 2, SKIP_STATIC_PAIRS, True, False)  # compile / warm up
-    scan_frames(ps, poses, static, 0, 2, SKIP_STATIC_PAIRS, False, True)
+    scan_frames(ps, poses, static, pairs, 0, 2, True, False)  # compile / warm up
+    scan_frames(ps, poses, static, pairs, 0, 2, False, True)
     out = {"build_s": build_s}
     t0 = time.perf_counter()
-    _, pairs = scan_frames(ps, poses, static, 0, n, SKIP_STATIC_PAIRS, True, False)
+    _, found, _ = scan_frames(ps, poses, static, pairs, 0, n, True, False)
     out["all pairs"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    hits, _ = scan_frames(ps, poses, static, 0, n, SKIP_STATIC_PAIRS, False, True)
+    hits, _, _ = scan_frames(ps, poses, static, pairs, 0, n, False, True)
     out["yes/no"] = time.perf_counter() - t0
     out["colliding"] = set(hits[:, 0].tolist())
     t0 = time.perf_counter()
-    _run_discrete(ps, poses, static, True, workers, None)
+    _run_discrete(ps, poses, static, filters, True, workers, None)
     out[f"all pairs, {workers} threads"] = time.perf_counter() - t0
     sets = [set() for _ in range(n)]
-    for f, _, _, a, b in pairs.tolist():
+    for f, _, _, a, b in found.tolist():
         sets[f].add((b, a))  # (env triangle, rob triangle)
     out["setup_s"] = time.perf_counter() - start
     return out, sets

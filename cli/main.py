@@ -71,6 +71,11 @@ class _OneLineFormatter(logging.Formatter):
         return escape_text(super().format(record))
 
 
+#: log level of notes (facts shown by default that are not warnings; collide.pipeline.NOTE)
+NOTE = 25
+logging.addLevelName(NOTE, "note")
+
+
 def _configure_logging():
     """collide's log on stderr at the -q/-v level; other libraries' logs (trimesh,
     matplotlib, ...) only with -vv, never Python's bare last-resort output."""
@@ -83,7 +88,7 @@ def _configure_logging():
         root = logging.getLogger()
         root.addHandler(logging.NullHandler())
         _state["library_handler"] = handler
-    level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(
+    level = {-1: logging.ERROR, 0: NOTE, 1: logging.INFO}.get(
         max(-1, min(1, _state["verbosity"])))
     logger.setLevel(logging.DEBUG if _state["verbosity"] > 1 else level)
     root = logging.getLogger()
@@ -260,6 +265,14 @@ def cli():
 @click.option("--warn-angle", type=click.FloatRange(min=0, max=180), default=config.SCREW_WARN_DEG,
               show_default=True, metavar="DEGREES",
               help="Screw motion: warn when an object turns more than this between two frames.")
+@click.option("--ignore", multiple=True, metavar="A:B",
+              help="Skip the object pairs whose names match the globs A and B (either order; repeatable; "
+                   "e.g. 'link_*:link_*', 'floor:*'); adds to the trajectory's filters/ignore list.")
+@click.option("--only", multiple=True, metavar="A:B",
+              help="Check only the object pairs matching the globs A and B (repeatable; e.g. 'gripper*:*').")
+@click.option("--glob", default=None, metavar="PATTERN",
+              help="Which files of MESHES are meshes (e.g. '*.stl' when each mesh comes in several formats) "
+                   "[default: every file trimesh loads].")
 @click.option("--split", type=click.Choice(["sah", "median", "mean"]), default="sah", show_default=True,
               help="BVH split rule.")
 @click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
@@ -281,8 +294,9 @@ def cli():
                    "(they read other files; refused by default).")
 @memory_option
 @verbosity_options
-def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, leaf_size, triangle_pairs, frames,
-         fail_on_contact, workers, scheduler, time_tol, fmt, allow_external_data, max_memory):
+def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, only, glob, split, leaf_size,
+         triangle_pairs, frames, fail_on_contact, workers, scheduler, time_tol, fmt, allow_external_data,
+         max_memory):
     """Find when, where and for how long the meshes in MESHES touch along TRAJECTORY."""
     bar = None
     state = {"done": 0}
@@ -301,7 +315,8 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, lea
         result = collide.scan(meshes, trajectory, mode=mode, split=split, leaf_size=leaf_size,
                               triangle_pairs=triangle_pairs, frames=frames, workers=workers,
                               scheduler=scheduler, time_tol=time_tol, interpolation=interpolation,
-                              warn_angle=warn_angle, output=output, progress=progress,
+                              warn_angle=warn_angle, ignore=ignore, only=only, glob=glob,
+                              output=output, progress=progress,
                               command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
                               allow_external_data=allow_external_data)
     finally:
@@ -318,7 +333,8 @@ def _print_summary(result, output, fmt):
                "contacts": s["contacts"], "pairs_in_contact": len(set(zip(result.contacts["object_a"].tolist(),
                                                                          result.contacts["object_b"].tolist()))),
                "frames_in_contact": s["frames_in_contact"], "triangle_pairs": s["triangle_pairs"],
-               "seconds": {k[:-2]: round(v, 4) for k, v in s.items() if k.endswith("_s")}}
+               "static_objects": s["static_objects"], "filters": s["filters"],
+               "seconds": {k[:-2]: round(v, 4) for k, v in s.items() if k.endswith("_s")}, "work": s["work"]}
     if fmt == "json":
         click.echo(_json(summary))
         return
@@ -326,6 +342,7 @@ def _print_summary(result, output, fmt):
                f"({summary['frames_in_contact']} of {s['frames']} frames in contact, {s['objects']} objects, "
                f"{result.mode}) -> {output}")
     click.echo("time: " + ", ".join(f"{k} {v:.3f} s" for k, v in summary["seconds"].items()))
+    logging.getLogger("collide").info("work: %s", ", ".join(f"{k} {v}" for k, v in summary["work"].items()))
 
 
 @cli.command()
@@ -443,17 +460,26 @@ def _print_table(rows, fields):
 @click.argument("contacts", type=PATH)
 @click.option("--time-tol", type=_FiniteFloat(min=0), default=1e-9, show_default=True,
               help="Largest difference of t_begin / t_end (in time units) still counted as the same.")
+@click.option("--ignore-filters", is_flag=True,
+              help="Compare even when the two scans checked different object pairs (--ignore/--only/"
+                   "filters/ignore); only the pairs both checked are meaningful then.")
 @memory_option
 @verbosity_options
-def diff(baseline, contacts, time_tol, max_memory):
+def diff(baseline, contacts, time_tol, ignore_filters, max_memory):
     """Compare CONTACTS with BASELINE: exit 0 when the same, 1 (listing every difference) when not.
 
-    Pairs are matched by object names; provenance is ignored. For CI:
+    Pairs are matched by object names; provenance is ignored, except that the two
+    scans must have checked the same object pairs (same pair filters). For CI:
     collide scan ... -o contacts.h5 && collide diff baseline.h5 contacts.h5
     """
-    from collide.report import diff_contacts
-    differences = diff_contacts(collide.read_contacts(baseline, max_memory=max_memory),
-                                collide.read_contacts(contacts, max_memory=max_memory), time_tol)
+    from collide.report import diff_contacts, scan_filters
+    before = collide.read_contacts(baseline, max_memory=max_memory)
+    after = collide.read_contacts(contacts, max_memory=max_memory)
+    if not ignore_filters and scan_filters(before) != scan_filters(after):
+        raise collide.UsageError(f"{contacts} was scanned with pair filters {scan_filters(after)} but {baseline} "
+                                 f"with {scan_filters(before)}: they checked different object pairs (pass "
+                                 "--ignore-filters to compare them anyway)")
+    differences = diff_contacts(before, after, time_tol)
     if not differences:
         click.echo(f"same contacts ({baseline} vs {contacts}, time tolerance {time_tol:g})")
         return

@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from .motion import box_deviation, chord_interval
+from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
 
 RULE_POSE = 0
 RULE_SWEPT = 1
@@ -186,44 +187,41 @@ def _half_area(lo, hi):
 
 
 @njit(cache=True)
-def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, motion, rule, margin, out):
-    """Leaf pairs of two BVHs whose boxes overlap under ``rule``.
+def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, top, out, max_out, counts):
+    """Leaf pairs of two BVHs whose boxes overlap under ``rule``, found by a tandem
+    descent that can stop and resume.
 
     lo, hi, first, count: node arrays holding both trees (see bvh.py; ``first``
-    of inner nodes indexes these same arrays). root_a, root_b: root nodes.
-    pose float64 (4, 3, 4) and motion float64 (2, MOTION_WIDTH): see module docstring.
-    out: int64 (cap, 2) buffer,
-    grown when full. Returns (out, k): rows out[:k] are (leaf_a, leaf_b).
-    Node pairs are visited in a fixed order, so results are deterministic.
+    of inner nodes indexes these same arrays). pose float64 (4, 3, 4) and motion
+    float64 (2, MOTION_WIDTH): see module docstring. stack: int64 (cap, 2) node pairs
+    still to open, the first ``top`` rows live; start a descent with the two roots as
+    its only row (top = 1). out: int64 (cap, 2) buffer of (leaf_a, leaf_b) rows. The
+    descent stops once max_out rows are found (or the stack is empty), so a caller
+    that needs only some can test them and resume with the returned stack. Buffers
+    grow when full. counts: int64 rows.COUNT_* counters. Returns (stack, top, out, k),
+    rows out[:k]. Node pairs are visited in a fixed order: results are deterministic.
     """
     rel = relative_pose(pose[0], pose[2])
     abs_r = np.abs(rel[:, :3]) + _ABS_R_EPS
-    stack = np.empty((256, 2), np.int64)
-    stack[0, 0] = root_a
-    stack[0, 1] = root_b
-    top = 1
     k = 0
-    while top > 0:
+    while top > 0 and k < max_out:
         top -= 1
         na = stack[top, 0]
         nb = stack[top, 1]
+        counts[COUNT_NODE_PAIRS] += 1
         if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
             continue
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0
         if leaf_a and leaf_b:
             if k == out.shape[0]:
-                grown = np.empty((2 * k, 2), np.int64)
-                grown[:k] = out
-                out = grown
+                out = _grown(out, k)
             out[k, 0] = na
             out[k, 1] = nb
             k += 1
             continue
         if top + 2 > stack.shape[0]:
-            grown = np.empty((2 * stack.shape[0], 2), np.int64)
-            grown[:top] = stack[:top]
-            stack = grown
+            stack = _grown(stack, top)
         # open the node that is not a leaf, or the larger of two inner nodes
         if leaf_b or (not leaf_a and _half_area(lo[na], hi[na]) >= _half_area(lo[nb], hi[nb])):
             child = first[na]
@@ -238,4 +236,13 @@ def overlapping_leaves(lo, hi, first, count, root_a, root_b, pose, motion, rule,
             stack[top + 1, 0] = na
             stack[top + 1, 1] = child
         top += 2
-    return out, k
+    counts[COUNT_LEAF_PAIRS] += k
+    return stack, top, out, k
+
+
+@njit(cache=True)
+def _grown(rows, n):
+    """A buffer twice the size of rows (cap, 2) holding its first n rows."""
+    grown = np.empty((max(2 * rows.shape[0], 16), rows.shape[1]), rows.dtype)
+    grown[:n] = rows[:n]
+    return grown

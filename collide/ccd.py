@@ -111,6 +111,7 @@ import numpy as np
 from numba import njit, prange
 
 from .predicates import triangles_intersect
+from .rows import COUNT_BOX_CHECKS, COUNT_CCD_PAIRS, COUNT_CCD_QUERIES, COUNT_WIDTH
 
 VERTEX_FACE = 0
 EDGE_EDGE = 1
@@ -628,9 +629,9 @@ def _heap_pop(heap, n, out):
 # --- the search -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max):
+def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, counts):
     """Best-first box search (module docstring); returns the conservative toi, or inf
-    when there is no contact at all or none before t_max."""
+    when there is no contact at all or none before t_max. counts: rows.COUNT_* (int64)."""
     heap = np.empty((HEAP_SIZE, _ROW))
     corners = np.empty((8, 3))
     scratch = np.empty((8, 3))
@@ -650,6 +651,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max)
         if box[0] > t_max:
             return np.inf  # every box left starts after t_max
         checks += 1
+        counts[COUNT_BOX_CHECKS] += 1
         if checks > MAX_CHECKS:
             return box[0]  # the earliest box still alive
         if kind == VERTEX_FACE and box[2] + box[4] > 1.0:
@@ -680,23 +682,24 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max)
 
 
 @njit(cache=True)
-def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max):
+def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, counts):
     """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE),
     as vertex_face_toi_kernel / edge_edge_toi_kernel, except that inf may also mean
     "no contact at or before t_max" (for callers that only need a minimum: a triangle
-    pair's first contact over its 15 queries)."""
+    pair's first contact over its 15 queries). counts: int64 rows.COUNT_* counters."""
     delta = _rounding_bound(x_t0, x_t1)
     tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
     if _root_excluded(kind, x_t0, x_t1, tol_out):
         return np.inf  # the common case: no allocation at all
+    counts[COUNT_CCD_QUERIES] += 1
     tol_in = (tol_out[0] + delta[0], tol_out[1] + delta[1], tol_out[2] + delta[2])
-    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max)
+    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, counts)
 
 
 @njit(cache=True)
 def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
     """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE)."""
-    return toi_before(kind, x_t0, x_t1, time_tol, dist_tol, np.inf)
+    return toi_before(kind, x_t0, x_t1, time_tol, dist_tol, np.inf, np.zeros(COUNT_WIDTH, np.int64))
 
 
 @njit(cache=True)
@@ -724,7 +727,7 @@ def edge_edge_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
 # --- a pair of moving triangles -------------------------------------------------------------
 
 @njit(cache=True)
-def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1):
+def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts):
     """Earliest time in [0, 1] at which moving triangles p and q touch, inf if never.
 
     p0, p1, q0, q1: (3, 3) vertex positions at t = 0 and t = 1 (linear motion).
@@ -734,8 +737,10 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1):
     time, at most time_tol earlier); each query only searches up to the best
     time found so far, and never beyond t_max: an answer after t_max may come
     back as inf (for callers that only need a minimum). Triangles already
-    intersecting at t = 0 (decided exactly) give 0. x0, x1: (4, 3) scratch buffers.
+    intersecting at t = 0 (decided exactly) give 0. x0, x1: (4, 3) scratch buffers;
+    counts: int64 rows.COUNT_* counters.
     """
+    counts[COUNT_CCD_PAIRS] += 1
     if triangles_intersect(p0, q0):
         return 0.0
     best = np.inf
@@ -747,7 +752,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1):
                 for r in range(3):
                     x0[r + 1, c] = other0[r, c]
                     x1[r + 1, c] = other1[r, c]
-            best = min(best, toi_before(VERTEX_FACE, x0, x1, time_tol, dist_tol, min(best, t_max)))
+            best = min(best, toi_before(VERTEX_FACE, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
             if best == 0.0:
                 return 0.0
     for i in range(3):  # edge i of p against edge j of q
@@ -761,7 +766,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1):
                 x1[1, c] = p1[(i + 1) % 3, c]
                 x1[2, c] = q1[j, c]
                 x1[3, c] = q1[(j + 1) % 3, c]
-            best = min(best, toi_before(EDGE_EDGE, x0, x1, time_tol, dist_tol, min(best, t_max)))
+            best = min(best, toi_before(EDGE_EDGE, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
             if best == 0.0:
                 return 0.0
     return best

@@ -3,8 +3,11 @@
 ``scan_frames`` is the kernel for one chunk of frames (single-threaded,
 releases the GIL so chunks run in parallel threads): per frame it places every
 object's root box in the world, sweeps and prunes to candidate object pairs,
-descends each pair's BVHs (broad.overlapping_leaves with RULE_POSE) and tests
-triangle pairs exactly (narrow.intersecting_triangles).
+skips the pairs the filter excludes (filters.PairFilter), descends each pair's
+BVHs (broad.overlapping_leaves with RULE_POSE) and tests triangle pairs exactly
+(narrow.intersecting_triangles). When only a yes/no answer per pair is needed
+(``first_only``), the descent hands over its leaf pairs a few at a time and
+stops at the first intersecting triangle pair.
 
 Output rows (int64, layouts in rows.py):
 - hits (H, HIT_WIDTH): frame, object_a, object_b, number of intersecting
@@ -13,6 +16,7 @@ Output rows (int64, layouts in rows.py):
   triangle pair: the count is then 1 and (tri_a, tri_b) that first pair.
 - pairs (P, PAIR_WIDTH): frame, object_a, object_b, tri_a, tri_b (only when
   collected).
+- counts (COUNT_WIDTH,): work done (rows.COUNT_*).
 """
 from typing import NamedTuple
 
@@ -21,16 +25,15 @@ from numba import njit
 
 from . import config
 from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune
+from .filters import pair_selected
 from .motion import MOTION_WIDTH, swept_box
 from .narrow import append_row, intersecting_triangles
-from .rows import (HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, PAIR_A, PAIR_B,
-                   PAIR_FRAME, PAIR_TRI_A, PAIR_TRI_B, PAIR_WIDTH)
 from .packed import to_world
+from .rows import (COUNT_OBJECT_PAIRS, COUNT_WIDTH, HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B,
+                   HIT_WIDTH, PAIR_A, PAIR_B, PAIR_FRAME, PAIR_TRI_A, PAIR_TRI_B, PAIR_WIDTH)
 
-#: pair_filter values: which object pairs a kernel call tests
-ALL_PAIRS = 0
-SKIP_STATIC_PAIRS = 1   # pairs of two static objects are skipped
-ONLY_STATIC_PAIRS = 2   # only pairs of two static objects
+#: leaf pairs the descent hands over at a time when one intersecting triangle pair is enough
+FIRST_HIT_BATCH = 8
 
 
 @njit(cache=True)
@@ -60,32 +63,44 @@ def object_world_boxes(ps, rp0, rp1, motion, extra, margin):
     return lo, hi
 
 
-@njit(cache=True)
-def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, leaves):
-    """Overlapping BVH leaf pairs of objects a and b (broad.overlapping_leaves) for poses
-    rp0 -> rp1 (N, 3, 4) and motion rows (N, MOTION_WIDTH); scratch: PairScratch.
-    Returns (leaves, count)."""
-    pose = scratch.pose
-    pose[0] = rp0[a]
-    pose[1] = rp1[a]
-    pose[2] = rp0[b]
-    pose[3] = rp1[b]
-    scratch.motion[0] = motion[a]
-    scratch.motion[1] = motion[b]
-    return overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                              ps.root[ps.object_mesh[a]], ps.root[ps.object_mesh[b]], pose,
-                              scratch.motion, rule, margin, leaves)
-
-
 class PairScratch(NamedTuple):
-    """Per-kernel scratch of pair_leaves."""
-    pose: np.ndarray    #: float64 (4, 3, 4)
-    motion: np.ndarray  #: float64 (2, MOTION_WIDTH)
+    """Per-kernel scratch of a pair's descent."""
+    pose: np.ndarray    #: float64 (4, 3, 4): A at pose 0, A at pose 1, B at pose 0, B at pose 1
+    motion: np.ndarray  #: float64 (2, MOTION_WIDTH): motion rows of A and B
 
 
 @njit(cache=True)
 def pair_scratch():
     return PairScratch(np.empty((4, 3, 4)), np.empty((2, MOTION_WIDTH)))
+
+
+@njit(cache=True)
+def start_descent(ps, rp0, rp1, motion, a, b, scratch, stack):
+    """Set up the tandem descent of objects a and b for poses rp0 -> rp1 (N, 3, 4) and
+    motion rows (N, MOTION_WIDTH): their poses and motions into scratch (PairScratch),
+    their roots as the only row of stack (int64 (cap, 2)). Returns top = 1."""
+    scratch.pose[0] = rp0[a]
+    scratch.pose[1] = rp1[a]
+    scratch.pose[2] = rp0[b]
+    scratch.pose[3] = rp1[b]
+    scratch.motion[0] = motion[a]
+    scratch.motion[1] = motion[b]
+    stack[0, 0] = ps.root[ps.object_mesh[a]]
+    stack[0, 1] = ps.root[ps.object_mesh[b]]
+    return 1
+
+
+@njit(cache=True)
+def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves, counts):
+    """All overlapping BVH leaf pairs of objects a and b (broad.overlapping_leaves) for poses
+    rp0 -> rp1 (N, 3, 4) and motion rows (N, MOTION_WIDTH). scratch: PairScratch;
+    stack, leaves: int64 (cap, 2) buffers. Returns (stack, leaves, count)."""
+    top = start_descent(ps, rp0, rp1, motion, a, b, scratch, stack)
+    counts[COUNT_OBJECT_PAIRS] += 1
+    stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
+                                               scratch.pose, scratch.motion, rule, margin, stack, top,
+                                               leaves, np.iinfo(np.int64).max, counts)
+    return stack, leaves, n
 
 
 @njit(cache=True)
@@ -101,16 +116,6 @@ def ensure_world(ps, rp, o, frame, static, stamp, world):
 
 
 @njit(cache=True)
-def pair_selected(pair_filter, static, a, b):
-    both_static = static[a] and static[b]
-    if pair_filter == SKIP_STATIC_PAIRS:
-        return not both_static
-    if pair_filter == ONLY_STATIC_PAIRS:
-        return both_static
-    return True
-
-
-@njit(cache=True)
 def _smallest_pair(tri, n):
     best = 0
     for k in range(1, n):
@@ -119,22 +124,51 @@ def _smallest_pair(tri, n):
     return tri[best, 0], tri[best, 1]
 
 
+@njit(cache=True)
+def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_only, scratch, stack, leaves,
+                    tri, counts):
+    """Intersecting triangle pairs of objects a and b at frame f (pose rp (N, 3, 4); still:
+    zero motion rows (N, MOTION_WIDTH)): all of them, or the first one found when
+    first_only (the descent hands over its leaf pairs FIRST_HIT_BATCH at a time and
+    stops there). Returns (stack, leaves, tri, n_tri)."""
+    top = start_descent(ps, rp, rp, still, a, b, scratch, stack)
+    counts[COUNT_OBJECT_PAIRS] += 1
+    batch = FIRST_HIT_BATCH if first_only else np.iinfo(np.int64).max
+    n_tri = 0
+    while top > 0 and not (first_only and n_tri > 0):
+        stack, top, leaves, n_leaves = overlapping_leaves(
+            ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose, scratch.motion, RULE_POSE,
+            margin, stack, top, leaves, batch, counts)
+        if n_leaves == 0:
+            continue
+        ensure_world(ps, rp, a, f, static, stamp, world)
+        ensure_world(ps, rp, b, f, static, stamp, world)
+        tri, n_tri = intersecting_triangles(
+            leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+            ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
+            world, ps.world_start[a], ps.world_start[b], tri, n_tri, first_only, counts)
+    return stack, leaves, tri, n_tri
+
+
 @njit(cache=True, nogil=True)
-def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect_pairs, first_only):
+def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs, first_only):
     """Discrete scan of frames [frame_start, frame_stop).
 
-    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,);
-    first_only must be False when collect_pairs is True.
-    Returns (hits int64 (H, HIT_WIDTH), pairs int64 (P, PAIR_WIDTH)): rows.py layouts.
+    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
+    move: their world vertices are computed once); pairs: filters.PairFilter; first_only
+    must be False when collect_pairs is True. Returns (hits int64 (H, HIT_WIDTH), pairs
+    int64 (P, PAIR_WIDTH), counts int64 (COUNT_WIDTH,)): rows.py layouts.
     """
     n_objects = poses.shape[1]
     world = np.empty((ps.world_start[n_objects], 3))
     stamp = np.full(n_objects, -1, np.int64)
     margin = np.empty(n_objects)
+    counts = np.zeros(COUNT_WIDTH, np.int64)
     hits = np.empty((16, HIT_WIDTH), np.int64)
     n_hits = 0
-    pairs = np.empty((16, PAIR_WIDTH), np.int64)
-    n_pairs = 0
+    found = np.empty((16, PAIR_WIDTH), np.int64)
+    n_found = 0
+    stack = np.empty((64, 2), np.int64)
     leaves = np.empty((256, 2), np.int64)
     tri = np.empty((64, 2), np.int64)
     scratch = pair_scratch()
@@ -149,18 +183,11 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
-            if not pair_selected(pair_filter, static, a, b):
+            if not pair_selected(pairs, a, b):
                 continue
-            leaves, n_leaves = pair_leaves(ps, rp, rp, still, a, b, RULE_POSE, margin[a] + margin[b], scratch,
-                                           leaves)
-            if n_leaves == 0:
-                continue
-            ensure_world(ps, rp, a, f, static, stamp, world)
-            ensure_world(ps, rp, b, f, static, stamp, world)
-            tri, n_tri = intersecting_triangles(
-                leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
-                ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
-                world, ps.world_start[a], ps.world_start[b], tri, 0, first_only)
+            stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
+                                                        stamp, world, first_only, scratch, stack, leaves, tri,
+                                                        counts)
             if n_tri == 0:
                 continue
             tri_a, tri_b = _smallest_pair(tri, n_tri)
@@ -178,5 +205,5 @@ def scan_frames(ps, poses, static, frame_start, frame_stop, pair_filter, collect
                     row[PAIR_B] = b
                     row[PAIR_TRI_A] = tri[k, 0]
                     row[PAIR_TRI_B] = tri[k, 1]
-                    pairs, n_pairs = append_row(pairs, n_pairs, row)
-    return hits[:n_hits].copy(), pairs[:n_pairs].copy()
+                    found, n_found = append_row(found, n_found, row)
+    return hits[:n_hits].copy(), found[:n_found].copy(), counts

@@ -4,6 +4,7 @@ Every problem raises ``InputError(file, problem, expected, dataset)`` before
 any work starts, so a bad input never costs a long run or a broken output.
 """
 import errno
+import fnmatch
 import logging
 import os
 import re
@@ -37,6 +38,7 @@ class Trajectory(NamedTuple):
     mesh_files: list      #: N mesh file names or stems from objects/mesh, or None
     poses: np.ndarray     #: float64 (T, N, 3, 4): rows [R | p], world = R @ body + p
     pose_dataset: str = "poses/position"  #: where the positions came from (for messages)
+    ignore: tuple = ()    #: (glob_a, glob_b) pairs of filters/ignore: object pairs never checked
 
 
 # --- meshes -----------------------------------------------------------------------------
@@ -51,12 +53,14 @@ def _mesh_suffixes():
     return {"." + ext.lower() for ext in trimesh.exchange.load.mesh_formats() if ext != "xyz"}
 
 
-def mesh_files(folder):
+def mesh_files(folder, glob=None):
     """Mesh files of a folder, sorted by name: {stem: path}. Validates the folder.
 
-    Symbolic links are followed. A mesh-named entry that is not a regular file
-    (FIFO, device, socket, dangling link) is an InputError; folders and files
-    with other suffixes are ignored.
+    ``glob``: an fnmatch pattern on file names choosing which files are meshes (for
+    folders holding the same mesh in several formats); default: every file with a
+    suffix trimesh loads. Symbolic links are followed. A mesh-named entry that is
+    not a regular file (FIFO, device, socket, dangling link) is an InputError;
+    folders and files with other suffixes are ignored.
     """
     folder = Path(folder)
     try:
@@ -73,14 +77,20 @@ def mesh_files(folder):
         raise InputError(folder, f"cannot list folder ({os_problem(exc)})", "a readable folder") from None
     found = {}
     for path in entries:
+        if glob is not None and not fnmatch.fnmatchcase(path.name, glob):
+            continue
         if path.name.startswith(".") or path.suffix.lower() not in suffixes or not _is_mesh_entry(path):
             log.info("%s: not a mesh file, ignored", escape_text(path))
             continue
         if path.stem in found:
             raise InputError(path, f"duplicate mesh name {path.stem!r} (also {found[path.stem].name})",
-                             "one mesh file per object name")
+                             f"one mesh file per object name (choose the files with --glob, e.g. "
+                             f"--glob '*{path.suffix}' or --glob '*{found[path.stem].suffix}')")
         found[path.stem] = path
     if not found:
+        if glob is not None:
+            raise InputError(folder, f"no mesh files match --glob {glob!r}",
+                             "a pattern matching mesh file names (e.g. '*.stl')")
         raise InputError(folder, "no mesh files found",
                          "mesh files trimesh can load (STL, OBJ, PLY, OFF, GLB, ...)")
     return found
@@ -278,6 +288,7 @@ def _string_attr(src, obj, name, dataset):
 
 TIME = "strictly increasing float times (T,), T >= 1"
 NAMES = "a 1-D string dataset of unique object names"
+IGNORE = "a string dataset (K, 2) of object name glob pairs"
 MESH_NAMES = "a 1-D string dataset of mesh file names"
 
 
@@ -309,6 +320,25 @@ def _read_names(src, names_ds, mesh_ds):
     if mesh_ds is not None:
         mesh_entries = _read_strings(src, mesh_ds, "objects/mesh", MESH_NAMES)
     return names, mesh_entries
+
+
+def _read_ignore(src):
+    """filters/ignore as a tuple of (glob_a, glob_b) pairs (an allowed-collision list)."""
+    ds = _dataset(src, "filters/ignore", IGNORE)
+    if ds.dtype.kind not in "SOU" or ds.shape is None or len(ds.shape) != 2 or ds.shape[1] != 2:
+        raise InputError(src.path, f"has dtype {ds.dtype} and shape {ds.shape}", IGNORE,
+                         dataset="filters/ignore")
+    check_memory(src.path, ds.shape[0] * 2 * config.STRING_BYTES, memory_limit(None), "an ignore list",
+                 dataset="filters/ignore")
+    try:
+        values = ds.asstr()[()] if ds.dtype.kind in "SO" else ds[()]
+    except (OSError, ValueError, TypeError, UnicodeDecodeError, RuntimeError):
+        raise InputError(src.path, "cannot read as UTF-8 strings", IGNORE, dataset="filters/ignore") from None
+    pairs = tuple((str(a), str(b)) for a, b in values)
+    for a, b in pairs:
+        if not a or not b:
+            raise InputError(src.path, "empty pattern", IGNORE, dataset="filters/ignore")
+    return pairs
 
 
 def quaternions_to_matrices(q, order):
@@ -451,12 +481,13 @@ def load_trajectory(path, allow_external=False, max_memory=None):
                          memory_limit(max_memory), f"a trajectory of {n_frames} frames and {n_objects} objects")
             time = _read_time(src, time_ds)
             names, mesh_entries = _read_names(src, names_ds, mesh_ds)
+            ignore = _read_ignore(src) if _exists(src, "filters/ignore") else ()
             poses = (_poses_from_matrices if encoding == "matrix" else _poses_from_quaternions)(src, pose_ds)
         except InputError:
             raise
         except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
             raise InputError(path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") from None
-    return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)))
+    return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)), ignore)
 
 
 # --- scene: meshes + trajectory ------------------------------------------------------------
@@ -469,6 +500,8 @@ class Scene(NamedTuple):
     poses: np.ndarray      #: float64 (T, N, 3, 4)
     static: np.ndarray     #: bool (N,): identity pose at every frame
     trajectory_path: Path
+    ignore: tuple = ()     #: the trajectory's filters/ignore pattern pairs
+    unlisted: tuple = ()   #: names of the meshes the trajectory does not list (static at identity)
 
 
 def _resolve_mesh(files, entry, traj_path, dataset):
@@ -483,12 +516,12 @@ def _resolve_mesh(files, entry, traj_path, dataset):
                      dataset=dataset)
 
 
-def input_files(meshes_folder, trajectory_path):
+def input_files(meshes_folder, trajectory_path, glob=None):
     """The files a scan reads: the trajectory and every mesh file of the folder (for
     refusing an output path that is one of them). A folder that cannot be listed
     contributes nothing here; loading reports it."""
     try:
-        meshes = list(mesh_files(meshes_folder).values())
+        meshes = list(mesh_files(meshes_folder, glob).values())
     except InputError:
         meshes = []
     return [Path(trajectory_path)] + meshes
@@ -508,13 +541,14 @@ def _check_reach(scene_names, meshes, object_mesh, poses, path, dataset):
                          dataset=dataset)
 
 
-def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=None):
+def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=None, glob=None):
     """Validate and load everything a scan needs.
 
     ``allow_external`` and ``max_memory`` are those of load_trajectory; the memory
-    estimate is checked again with the static meshes' objects added.
+    estimate is checked again with the static meshes' objects added. ``glob``: see
+    mesh_files.
     """
-    files = mesh_files(meshes_folder)
+    files = mesh_files(meshes_folder, glob)
     traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory)
     dataset = "objects/name" if traj.mesh_files is None else "objects/mesh"
     entries = traj.names if traj.mesh_files is None else traj.mesh_files
@@ -541,4 +575,5 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
     _check_reach(names, meshes, object_mesh, poses, traj.path,
                  traj.pose_dataset)
     static = (poses == identity).all(axis=(0, 2, 3))
-    return Scene(names, meshes, object_mesh, traj.time, poses, static, traj.path)
+    return Scene(names, meshes, object_mesh, traj.time, poses, static, traj.path, traj.ignore,
+                 tuple(p.stem for p in static_paths))

@@ -72,6 +72,7 @@ from numba import njit
 from . import config
 from .ccd import triangle_pair_toi
 from .predicates import triangles_intersect
+from .rows import COUNT_SPLITS
 
 #: interpolation name -> code used by the kernels
 INTERPOLATIONS = {"screw": 1, "linear-vertex": 0}
@@ -394,7 +395,8 @@ def swept_box(lo, hi, rp0, rp1, m):
 # --- triangle pairs: certified first and last contact ---------------------------------------------
 
 @njit(cache=True)
-def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work):
+def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work,
+                          counts):
     """Conservative first contact time in [0, 1] of triangles p and q over one step, or
     (backwards) their last contact time; inf (backwards: -inf) if they never touch.
 
@@ -405,15 +407,15 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
     whole step (length units, point_deviation), eta the sum of their rounding margins.
     time_tol: fraction of the step; dist_tol: length units. work: (2, 4, 3) scratch.
     With dev == 0 and eta == 0 (linear-vertex motion or pure translation) this is one
-    linear CCD of the step.
+    linear CCD of the step. counts: int64 rows.COUNT_* counters.
     """
     if dev == 0.0 and eta == 0.0:
         x0 = work[0]
         x1 = work[1]
         if backwards:
-            return 1.0 - triangle_pair_toi(p1, p0, q1, q0, time_tol, dist_tol, 1.0 - limit, x0, x1)
-        return triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, limit, x0, x1)
-    t = _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work)
+            return 1.0 - triangle_pair_toi(p1, p0, q1, q0, time_tol, dist_tol, 1.0 - limit, x0, x1, counts)
+        return triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, limit, x0, x1, counts)
+    t = _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts)
     return -np.inf if backwards and t == np.inf else t
 
 
@@ -433,7 +435,7 @@ def _boxes_overlap(pa, pb, qa, qb, margin):
 
 
 @njit(cache=True)
-def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work):
+def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts):
     """The sub-step refinement of the module docstring. Forwards: earliest contact up to
     limit; backwards: latest contact from limit on (the same search with time running
     from 1 to 0). inf when none."""
@@ -471,9 +473,9 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
         # the limit in units of the sub-step, rounded outward
         sub_limit = ((b - limit) if backwards else (limit - a)) / max(h, MIN_SUBSTEP) * (1.0 + 2.0 ** -50)
         if backwards:
-            tau = triangle_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, x0, x1)
+            tau = triangle_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, x0, x1, counts)
         else:
-            tau = triangle_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, x0, x1)
+            tau = triangle_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, x0, x1, counts)
         if tau == np.inf:
             continue
         # no contact in [a, t) (forwards) or (t, b] (backwards); t rounded outward
@@ -484,6 +486,7 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
         if final:
             return t
         splits += 1
+        counts[COUNT_SPLITS] += 1
         # search what is left, [t, b] (backwards: [a, t]), in two halves, the earlier in time first
         if backwards:
             mid = a + 0.5 * (t - a)

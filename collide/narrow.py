@@ -9,6 +9,7 @@ from numba import njit
 
 from .motion import M_ETA, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
+from .rows import COUNT_TRIANGLE_PAIRS
 
 
 @njit(cache=True, inline="always")
@@ -46,14 +47,14 @@ def append_row(buf, n, row):
 @njit(cache=True)
 def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
                            face_base_a, face_base_b, world, world_base_a, world_base_b,
-                           out, n_out, first_only):
+                           out, n_out, first_only, counts):
     """Append every intersecting triangle pair (tri_a, tri_b) of the leaf pairs
     (only the first one found when ``first_only``).
 
     leaves int64 (>= n_leaves, 2): (leaf of A, leaf of B) node indices.
     prim_ids hold mesh-local face indices; face_base_* turn them into rows of
-    ``faces``. Returns (out, n_out) with out int64 (cap, 2) of mesh-local
-    triangle indices.
+    ``faces``. counts: int64 rows.COUNT_* counters. Returns (out, n_out) with out
+    int64 (cap, 2) of mesh-local triangle indices.
     """
     p = np.empty((3, 3))
     q = np.empty((3, 3))
@@ -67,6 +68,7 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
             for ib in range(first[lb], first[lb] + count[lb]):
                 tri_b = prim_ids[ib]
                 gather_triangle(world, world_base_b, faces, face_base_b + tri_b, q)
+                counts[COUNT_TRIANGLE_PAIRS] += 1
                 if _triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
                     row[0] = tri_a
                     row[1] = tri_b
@@ -99,7 +101,7 @@ def _swept_triangle_boxes_overlap(p0, p1, q0, q1, margin):
 
 @njit(cache=True)
 def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
-                      world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out):
+                      world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
     """Triangle pairs (tri_a, tri_b) of the leaf pairs whose boxes over the step, widened
     by dist_tol, both triangles' deviation bounds and rounding margins, overlap.
     Returns (out int64 (cap, 2), n), rows sorted by (tri_a, tri_b)."""
@@ -123,6 +125,7 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
                 gather_triangle(world0, world_base_b, faces, face_base_b + tri_b, q0)
                 gather_triangle(world1, world_base_b, faces, face_base_b + tri_b, q1)
                 dev = dev_p + point_deviation(motion_b, q0)
+                counts[COUNT_TRIANGLE_PAIRS] += 1
                 if _swept_triangle_boxes_overlap(p0, p1, q0, q1, dist_tol + dev + eta):
                     row[0] = tri_a
                     row[1] = tri_b
@@ -135,7 +138,7 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
 @njit(cache=True)
 def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
                          world0, world1, world_base_a, world_base_b, motion_a, motion_b,
-                         time_tol, dist_tol, find_first, candidates):
+                         time_tol, dist_tol, find_first, candidates, counts):
     """When two objects touch during one step, from the triangles of their leaf pairs.
 
     Returns (candidates, t_first, t_last, tri_a, tri_b): the earliest contact of any
@@ -146,11 +149,12 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     (the step is the resolution of gaps). Every triangle pair's search only looks
     for contacts that could still move t_first (or t_last), so most pairs stop early.
     With find_first False only t_last is searched (t_first stays inf, t_last is -inf
-    when none touches). candidates: int64 (cap, 2) scratch, grown and returned.
+    when none touches). candidates: int64 (cap, 2) scratch, grown and returned;
+    counts: int64 rows.COUNT_* counters.
     """
     candidates, n = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
                                       face_base_b, world0, world1, world_base_a, world_base_b,
-                                      motion_a, motion_b, dist_tol, candidates)
+                                      motion_a, motion_b, dist_tol, candidates, counts)
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = np.empty((2, 4, 3))
     t_first = np.inf
@@ -159,7 +163,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     for k in range(n if find_first else 0):  # earliest contact; sorted: ties keep the smaller pair
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
-                               t_first, False, corners, work)
+                               t_first, False, corners, work, counts)
         if t < t_first:
             t_first = t
             best_a = candidates[k, 0]
@@ -172,14 +176,15 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
             break
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
-                               t_last, True, corners, work)
+                               t_last, True, corners, work, counts)
         t_last = max(t_last, t)
     return candidates, t_first, t_last, best_a, best_b
 
 
 @njit(cache=True)
 def _candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, world1, world_base_a,
-                       world_base_b, motion_a, motion_b, time_tol, dist_tol, limit, backwards, corners, work):
+                       world_base_b, motion_a, motion_b, time_tol, dist_tol, limit, backwards, corners, work,
+                       counts):
     """motion.triangle_pair_contact of triangles tri_a of A and tri_b of B; corners (4, 3, 3)
     and work (2, 4, 3) scratch."""
     p0 = corners[0]
@@ -193,4 +198,4 @@ def _candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, wo
     dev = point_deviation(motion_a, p0) + point_deviation(motion_b, q0)
     eta = motion_a[M_ETA] + motion_b[M_ETA]
     return triangle_pair_contact(motion_a, motion_b, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit,
-                                 backwards, work)
+                                 backwards, work, counts)

@@ -19,17 +19,23 @@ from ._version import __version__
 from .closest import contact_point
 from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, intervals_from_hits,
                        intervals_from_steps, sort_columns)
-from .discrete import ALL_PAIRS, ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
+from .discrete import scan_frames
+from .filters import build_filters, describe
 from .errors import InputError, UsageError
 from .load import input_files, load_scene
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
-from .rows import (HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, PAIR_WIDTH, SWEPT_A,
-                   SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_END, TIMES_WIDTH)
+from .rows import (COUNT_NAMES, COUNT_WIDTH, HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH,
+                   PAIR_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_END,
+                   TIMES_WIDTH)
 from .swept import scan_intervals
 
 log = logging.getLogger("collide")
+
+#: log level of notes: facts a user should see by default that are not warnings
+NOTE = 25
+logging.addLevelName(NOTE, "note")
 
 MODES = ("continuous", "discrete")
 
@@ -163,48 +169,55 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
     return results
 
 
-def _run_discrete(ps, poses, static, collect_pairs, workers, progress, scheduler=None):
-    """Frame hits (H, HIT_WIDTH) and triangle pairs (P, PAIR_WIDTH) of all frames (rows.py).
+def _run_discrete(ps, poses, static, filters, collect_pairs, workers, progress, scheduler=None):
+    """Frame hits (H, HIT_WIDTH), triangle pairs (P, PAIR_WIDTH) (rows.py) and work counts
+    of all frames, for the object pairs filters.Filters selects.
 
     Without collect_pairs each object pair's search stops at its first
     intersecting triangle pair (see smallest_pairs_at_frames for the reported pair).
+    Pairs of static objects are tested once and repeated for every frame.
     """
     n_frames = poses.shape[0]
     first_only = not collect_pairs
-    results = _run_chunks(scan_frames, (ps, poses, static), (SKIP_STATIC_PAIRS, collect_pairs, first_only),
-                          n_frames, workers, progress, scheduler)
-    hits = [r[0] for r in results]
-    pairs = [r[1] for r in results]
-    if static.sum() >= 2:  # static pairs: test once, then repeat for every frame
-        s_hits, s_pairs = scan_frames(ps, poses, static, 0, 1, ONLY_STATIC_PAIRS, collect_pairs, first_only)
-        hits.append(_repeat_over_frames(s_hits, n_frames))
-        pairs.append(_repeat_over_frames(s_pairs, n_frames))
-    return np.concatenate(hits).reshape(-1, HIT_WIDTH), np.concatenate(pairs).reshape(-1, PAIR_WIDTH)
+    results = _run_chunks(scan_frames, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
+                          (collect_pairs, first_only), n_frames, workers, progress, scheduler)
+    if static.sum() >= 2:
+        s_hits, s_pairs, s_counts = scan_frames(ps, poses, static, filters.kernel_filter(only_within=static), 0,
+                                                1, collect_pairs, first_only)
+        results.append((_repeat_over_frames(s_hits, n_frames), _repeat_over_frames(s_pairs, n_frames), s_counts))
+    return (np.concatenate([r[0] for r in results]).reshape(-1, HIT_WIDTH),
+            np.concatenate([r[1] for r in results]).reshape(-1, PAIR_WIDTH), _total_counts(results))
 
 
-def smallest_pairs_at_frames(contacts, where, ps, poses, static):
+def _total_counts(results):
+    """Sum of the kernels' work counts (the last item of each result)."""
+    return np.sum([r[-1] for r in results], axis=0) if results else np.zeros(COUNT_WIDTH, np.int64)
+
+
+def smallest_pairs_at_frames(contacts, where, ps, poses, static, filters):
     """Set each contact's (tri_a, tri_b) that came from a frame hit to the smallest
     intersecting pair at that frame (hits found without collecting pairs hold the
     first pair found, which depends on the BVH)."""
     steps, _, from_hit = where
+    pair_filter = filters.kernel_filter()
     for f in np.unique(steps[from_hit]):
-        hits, _ = scan_frames(ps, poses, static, f, f + 1, ALL_PAIRS, False, False)
+        hits, _, _ = scan_frames(ps, poses, static, pair_filter, f, f + 1, False, False)
         smallest = {(a, b): (ta, tb) for a, b, ta, tb in hits[:, [HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B]].tolist()}
         for k in np.flatnonzero(from_hit & (steps == f)):
             contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
-def _run_swept(ps, poses, static, interpolation, time_tol, dist_tol, workers, progress, scheduler=None):
+def _run_swept(ps, poses, static, filters, interpolation, time_tol, dist_tol, workers, progress, scheduler=None):
     """Swept contacts (ids (R, SWEPT_WIDTH), fractions (R, TIMES_WIDTH); rows.py) of every
-    motion step (static pairs excluded: they never move)."""
+    motion step and work counts (static pairs excluded: they never move)."""
     n_steps = poses.shape[0] - 1
     if n_steps < 1:
-        return np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH))
-    results = _run_chunks(scan_intervals, (ps, poses, static),
-                          (SKIP_STATIC_PAIRS, INTERPOLATIONS[interpolation], time_tol, dist_tol),
-                          n_steps, workers, progress, scheduler)
+        return np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), np.zeros(COUNT_WIDTH, np.int64)
+    results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
+                          (INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
+                          scheduler)
     return (np.concatenate([r[0] for r in results]).reshape(-1, SWEPT_WIDTH),
-            np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH))
+            np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts(results))
 
 
 def _static_steps(hits, static, n_steps):
@@ -321,13 +334,13 @@ def _compile_note(seconds=1.5):
         note.cancel()
 
 
-def _compile_kernels(ps, poses, static, continuous, interpolation, time_tol, dist_tol):
+def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time_tol, dist_tol):
     """Call every kernel of a scan once on no work, so that compiling (first run) or
     loading them from numba's cache happens here, before the progress bar."""
-    scan_frames(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, False, True)
+    pair_filter = filters.kernel_filter()
+    scan_frames(ps, poses, static, pair_filter, 0, 0, False, True)
     if continuous:
-        scan_intervals(ps, poses, static, 0, 0, SKIP_STATIC_PAIRS, INTERPOLATIONS[interpolation], time_tol,
-                       dist_tol)
+        scan_intervals(ps, poses, static, pair_filter, 0, 0, INTERPOLATIONS[interpolation], time_tol, dist_tol)
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
 
@@ -346,24 +359,34 @@ def _check_options(mode, interpolation, workers):
 def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          triangle_pairs=False, frames=None, workers=None, scheduler=None,
          time_tol=config.TIME_TOL, interpolation="screw", warn_angle=config.SCREW_WARN_DEG,
-         output=None, progress=None, command=None, max_memory=None, allow_external_data=False):
+         ignore=(), only=(), glob=None, output=None, progress=None, command=None, max_memory=None,
+         allow_external_data=False):
     """Find when, where and for how long the meshes touch along the trajectory.
 
     Parameters mirror ``collide scan``; ``time_tol`` is a fraction of the frame
     interval; ``interpolation`` ("screw" or "linear-vertex") the motion between
     frames in continuous mode; ``warn_angle`` (degrees per frame) where screw
-    motion warns of under-sampling. ``progress(done, total)`` is called as work
-    completes. With ``output`` the result is also written there (atomically; never
-    over an input). ``max_memory`` and ``allow_external_data``: see
-    load.load_trajectory. Returns a ScanResult.
+    motion warns of under-sampling; ``ignore`` and ``only``: object pairs to skip,
+    or to check alone, as 'A:B' name globs or (A, B) pairs (added to the
+    trajectory's filters/ignore); ``glob``: which files of the meshes folder are
+    meshes. ``progress(done, total)`` is called as work completes. With ``output``
+    the result is also written there (atomically; never over an input).
+    ``max_memory`` and ``allow_external_data``: see load.load_trajectory. Returns a
+    ScanResult.
     """
     workers = _check_options(mode, interpolation, workers)
-    inputs = input_files(meshes, trajectory) if output is not None else []
+    inputs = input_files(meshes, trajectory, glob) if output is not None else []
     if output is not None:
         check_output_path(output, inputs)  # fail before the work, not after
     timings = {}
     start = time.perf_counter()
-    scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory)
+    scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
+                       glob=glob)
+    filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
+    if scene.unlisted:
+        log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
+                "es" if len(scene.unlisted) > 1 else "", "their" if len(scene.unlisted) > 1 else "its",
+                ", ".join(scene.unlisted))
     index = parse_frames(frames, scene.time.shape[0])
     poses = np.ascontiguousarray(scene.poses[index])
     frame_time = scene.time[index]
@@ -376,22 +399,24 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
         if continuous:
             check_motion(scene, ps, poses, index, interpolation, warn_angle)
-        _compile_kernels(ps, poses, scene.static, continuous, interpolation, time_tol, dist_tol)
+        _compile_kernels(ps, poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
         timings["jit_s"] = time.perf_counter() - start
 
     start = time.perf_counter()
     work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
-    hits, pair_rows = _run_discrete(ps, poses, scene.static, triangle_pairs, workers, work, scheduler)
+    hits, pair_rows, counts = _run_discrete(ps, poses, scene.static, filters, triangle_pairs, workers, work,
+                                            scheduler)
     if continuous:
-        ids, fractions = _run_swept(ps, poses, scene.static, interpolation, time_tol, dist_tol, workers, work,
-                                    scheduler)
+        ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, interpolation, time_tol,
+                                                  dist_tol, workers, work, scheduler)
+        counts = counts + swept_counts
         static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
         contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
                                                np.concatenate([fractions, static_fractions]), hits, frame_time)
     else:
         contacts, where = intervals_from_hits(hits, frame_time)
     if not triangle_pairs:
-        smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
+        smallest_pairs_at_frames(contacts, where, ps, poses, scene.static, filters)
     _fill_contact_points(contacts, where, scene, poses, interpolation)
     pairs = None
     if triangle_pairs:
@@ -402,7 +427,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     parameters = {"mode": mode, "split": split, "leaf_size": leaf_size or config.DEFAULT_LEAF_SIZE,
                   "triangle_pairs": bool(triangle_pairs), "frames": None if frames is None else str(frames),
                   "workers": workers, "scheduler": scheduler, "time_tol": time_tol,
-                  "interpolation": interpolation}
+                  "interpolation": interpolation, "glob": glob, "filters": describe(filters)}
     result = ScanResult(
         object_names=list(scene.names),
         object_meshes=[scene.meshes[m].path.name for m in scene.object_mesh],
@@ -414,7 +439,9 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                "contacts": int(contacts["object_a"].size),
                "swept_only_contacts": int((contacts["kind"] == KIND_SWEPT).sum()),
                "frames_in_contact": int(np.unique(hits[:, HIT_FRAME]).size),
-               "triangle_pairs": int(hits[:, HIT_PAIRS].sum()) if triangle_pairs else None},
+               "triangle_pairs": int(hits[:, HIT_PAIRS].sum()) if triangle_pairs else None,
+               "static_objects": list(scene.unlisted), "filters": describe(filters),
+               "work": {name: int(n) for name, n in zip(COUNT_NAMES, counts)}},
     )
     result.provenance = {
         "command": command or f"collide.scan({str(meshes)!r}, {str(trajectory)!r}, mode={mode!r})",

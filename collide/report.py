@@ -66,6 +66,20 @@ def triangle_pair_rows(cf):
 
 # --- diff ------------------------------------------------------------------------------------
 
+def scan_filters(cf):
+    """The pair filters a contacts file was scanned with, as a JSON-able dict ({"ignore":
+    [[a, b], ...], "only": [...]}); none for files from scans without filters."""
+    import json
+    try:
+        parameters = json.loads(cf.provenance.get("parameters", "{}"))
+    except (TypeError, ValueError):
+        parameters = {}
+    filters = parameters.get("filters") if isinstance(parameters, dict) else None
+    if not isinstance(filters, dict):
+        filters = {}
+    return {"ignore": filters.get("ignore", []), "only": filters.get("only", [])}
+
+
 class Difference(NamedTuple):
     change: str          #: "appeared", "disappeared" or "moved"
     a: str

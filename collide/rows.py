@@ -39,3 +39,17 @@ SWEPT_WIDTH = 5
 T_BEGIN = 0        #: first contact, fraction of the step (conservative: never late)
 T_END = 1          #: last contact, fraction of the step (never early)
 TIMES_WIDTH = 2
+
+# work counters: int64 (COUNT_WIDTH,), summed over kernel calls (the scan summary's "work")
+COUNT_OBJECT_PAIRS = 0   #: object pairs whose BVHs were descended (after the cheap culls)
+COUNT_NODE_PAIRS = 1     #: BVH node pairs tested in those descents
+COUNT_LEAF_PAIRS = 2     #: overlapping leaf pairs found
+COUNT_TRIANGLE_PAIRS = 3  #: triangle pairs tested (box, exact predicate or swept box)
+COUNT_CCD_PAIRS = 4      #: triangle-pair continuous searches (15 primitive queries each at most)
+COUNT_CCD_QUERIES = 5    #: primitive queries not excluded at once (they search boxes)
+COUNT_BOX_CHECKS = 6     #: boxes those searches checked
+COUNT_SUBSTEPS = 7       #: sub-steps of fast-turning object pairs searched
+COUNT_SPLITS = 8         #: triangle-pair sub-step splits of the screw refinement
+COUNT_WIDTH = 9
+COUNT_NAMES = ("object_pairs", "node_pairs", "leaf_pairs", "triangle_pairs", "ccd_pairs", "ccd_queries",
+               "box_checks", "substeps", "splits")

@@ -35,14 +35,14 @@ from numba import njit
 
 from .analytic import sphere_overlap_window
 from .broad import RULE_SWEPT, sweep_and_prune
-from .discrete import (ensure_world, object_margins, object_world_boxes, pair_leaves, pair_scratch,
-                       pair_selected)
+from .discrete import ensure_world, object_margins, object_world_boxes, pair_leaves, pair_scratch
+from .filters import pair_selected
 from .motion import (M_ETA, MOTION_WIDTH, pose_at, screw_motion, sphere_deviation, step_motions,
                      substeps)
 from .narrow import append_row, swept_contact_window
 from .packed import to_world
-from .rows import (SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_BEGIN, T_END,
-                   TIMES_WIDTH)
+from .rows import (COUNT_SUBSTEPS, COUNT_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B,
+                   SWEPT_WIDTH, T_BEGIN, T_END, TIMES_WIDTH)
 
 
 @njit(cache=True)
@@ -72,6 +72,14 @@ def spheres_may_meet(ps, rp0, rp1, motion, a, b, margin):
     return t_lo <= t_hi
 
 
+class Buffers(NamedTuple):
+    """Growable int64 (cap, 2) buffers of one kernel call, passed along and returned
+    (grown) by the functions that fill them."""
+    stack: np.ndarray      #: node pairs still to open in a tandem descent
+    leaves: np.ndarray     #: overlapping leaf pairs
+    tri_pairs: np.ndarray  #: candidate triangle pairs (narrow.swept_contact_window)
+
+
 class SubStep(NamedTuple):
     """Buffers for the sub-steps of one object pair (N objects, W world vertex rows;
     only the rows of the pair's two objects are used)."""
@@ -89,43 +97,45 @@ def _sub_step_buffers(n_objects, n_world):
 
 
 @njit(cache=True)
-def _window(ps, rp0, rp1, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first,
-            tri_pairs):
-    """narrow.swept_contact_window of objects a and b over poses rp0 -> rp1 (N, 3, 4) with
-    world vertices world0, world1 and their n_leaves overlapping leaf pairs."""
+def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first, tri_pairs,
+            counts):
+    """narrow.swept_contact_window of objects a and b under motion rows (N, MOTION_WIDTH),
+    with world vertices world0, world1 at both ends and their n_leaves overlapping leaf
+    pairs."""
     return swept_contact_window(
         leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
         ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
         ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, find_first,
-        tri_pairs)
+        tri_pairs, counts)
 
 
 @njit(cache=True)
 def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol,
-                     find_first, sub, pair, leaves, tri_pairs):
+                     find_first, sub, pair, buffers, counts):
     """Contact window of objects a and b over sub-step j of n_sub (fractions j / n_sub to
-    (j + 1) / n_sub of the step), a screw motion between their poses there. Returns
-    (leaves, tri_pairs, t_first, t_last, tri_a, tri_b), times as fractions of the
-    sub-step."""
+    (j + 1) / n_sub of the step), a screw motion between their poses there. buffers:
+    Buffers. Returns (buffers, t_first, t_last, tri_a, tri_b), times as fractions of
+    the sub-step."""
     t0 = j / n_sub
     t1 = (j + 1) / n_sub
     for o in (a, b):
         pose_at(motion[o], rp0[o], rp1[o], t0, sub.pose0[o])
         pose_at(motion[o], rp0[o], rp1[o], t1, sub.pose1[o])
         screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # a small turn: never half
-    leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT, pair_margin, pair,
-                                   leaves)
+    counts[COUNT_SUBSTEPS] += 1
+    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT, pair_margin,
+                                          pair, buffers.stack, buffers.leaves, counts)
     if n_leaves == 0:
-        return leaves, tri_pairs, np.inf, -np.inf, -1, -1
+        return Buffers(stack, leaves, buffers.tri_pairs), np.inf, -np.inf, -1, -1
     for o in (a, b):
         mesh = ps.object_mesh[o]
         body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
         to_world(body, sub.pose0[o], sub.world0, ps.world_start[o])
         to_world(body, sub.pose1[o], sub.world1, ps.world_start[o])
-    tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, sub.pose0, sub.pose1, sub.motion, sub.world0,
-                                                       sub.world1, a, b, n_leaves, leaves, time_tol * n_sub,
-                                                       dist_tol, find_first, tri_pairs)
-    return leaves, tri_pairs, t_first, t_last, tri_a, tri_b
+    tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, sub.motion, sub.world0, sub.world1, a, b, n_leaves,
+                                                       leaves, time_tol * n_sub, dist_tol, find_first,
+                                                       buffers.tri_pairs, counts)
+    return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
 
 
 @njit(cache=True)
@@ -140,19 +150,19 @@ def _step_time(j, u, n_sub, upward):
 
 @njit(cache=True)
 def _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, sub,
-                        pair, leaves, tri_pairs):
+                        pair, buffers, counts):
     """Contact window of objects a and b over the step, from its n_sub sub-steps: the first
     sub-step with a contact gives t_first (and the touching pair), the last one t_last.
-    Returns (leaves, tri_pairs, t_first, t_last, tri_a, tri_b)."""
+    Returns (buffers, t_first, t_last, tri_a, tri_b)."""
     t_first = np.inf
     t_last = -np.inf
     pair_a = -1
     pair_b = -1
     j_first = n_sub
     for j in range(n_sub):
-        leaves, tri_pairs, f, l, tri_a, tri_b = _sub_step_window(
+        buffers, f, l, tri_a, tri_b = _sub_step_window(
             ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, True, sub, pair,
-            leaves, tri_pairs)
+            buffers, counts)
         if f < np.inf:
             t_first = _step_time(j, f, n_sub, False)
             t_last = _step_time(j, l, n_sub, True)
@@ -161,40 +171,74 @@ def _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, 
             j_first = j
             break
     for j in range(n_sub - 1, j_first, -1):
-        leaves, tri_pairs, f, l, tri_a, tri_b = _sub_step_window(
+        buffers, f, l, tri_a, tri_b = _sub_step_window(
             ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, False, sub, pair,
-            leaves, tri_pairs)
+            buffers, counts)
         if l > -np.inf:
             t_last = _step_time(j, l, n_sub, True)
             break
-    return leaves, tri_pairs, t_first, t_last, pair_a, pair_b
+    return buffers, t_first, t_last, pair_a, pair_b
+
+
+@njit(cache=True)
+def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, state, buffers, counts):
+    """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
+    (t_first = inf: no contact), whole or in sub-steps (motion.substeps). state: Step.
+    Returns (buffers, t_first, t_last, tri_a, tri_b)."""
+    pair_margin = margin[a] + margin[b] + dist_tol
+    if not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
+        return buffers, np.inf, -np.inf, -1, -1
+    mesh_a = ps.object_mesh[a]
+    mesh_b = ps.object_mesh[b]
+    n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre[mesh_a], rp0[a]), ps.sphere_radius[mesh_a],
+                     _world_centre(ps.centre[mesh_b], rp0[b]), ps.sphere_radius[mesh_b])
+    if n_sub > 1:
+        return _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol,
+                                   state.sub, state.pair, buffers, counts)
+    stack, leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, RULE_SWEPT, pair_margin, state.pair,
+                                          buffers.stack, buffers.leaves, counts)
+    if n_leaves == 0:
+        return Buffers(stack, leaves, buffers.tri_pairs), np.inf, -np.inf, -1, -1
+    for o in (a, b):
+        ensure_world(ps, rp0, o, k, static, state.stamp0, state.world0)
+        ensure_world(ps, rp1, o, k + 1, static, state.stamp1, state.world1)
+    tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
+                                                       leaves, time_tol, dist_tol, True, buffers.tri_pairs,
+                                                       counts)
+    return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
+
+
+class Step(NamedTuple):
+    """Fixed-size buffers of one scan_intervals call (N objects, W world vertex rows)."""
+    world0: np.ndarray  #: float64 (W, 3) world vertices at the step's start (rows of objects in use)
+    world1: np.ndarray  #: float64 (W, 3) and end
+    stamp0: np.ndarray  #: int64 (N,) frame whose vertices world0 holds for each object
+    stamp1: np.ndarray  #: int64 (N,)
+    sub: SubStep
+    pair: object        #: discrete.PairScratch
 
 
 @njit(cache=True, nogil=True)
-def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interpolation, time_tol,
-                   dist_tol):
+def scan_intervals(ps, poses, static, pairs, step_start, step_stop, interpolation, time_tol, dist_tol):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
-    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,); interpolation:
-    a motion.INTERPOLATIONS code; time_tol in units of the step; dist_tol in length
-    units. Returns (ids int64 (R, SWEPT_WIDTH), times float64 (R, TIMES_WIDTH)), see
-    the module docstring.
+    ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
+    move); pairs: filters.PairFilter; interpolation: a motion.INTERPOLATIONS code;
+    time_tol in units of the step; dist_tol in length units. Returns (ids int64 (R,
+    SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64 (COUNT_WIDTH,)), see the
+    module docstring.
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
-    world0 = np.empty((n_world, 3))
-    world1 = np.empty((n_world, 3))
-    stamp0 = np.full(n_objects, -1, np.int64)
-    stamp1 = np.full(n_objects, -1, np.int64)
+    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), np.full(n_objects, -1, np.int64),
+                 np.full(n_objects, -1, np.int64), _sub_step_buffers(n_objects, n_world), pair_scratch())
+    buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64))
+    counts = np.zeros(COUNT_WIDTH, np.int64)
     margin = np.empty(n_objects)
+    motion = np.empty((n_objects, MOTION_WIDTH))
     ids = np.empty((16, SWEPT_WIDTH), np.int64)
     times = np.empty((16, TIMES_WIDTH))
     n_rows = 0
-    leaves = np.empty((256, 2), np.int64)
-    tri_pairs = np.empty((64, 2), np.int64)  # scratch of swept_contact_window
-    pair = pair_scratch()
-    sub = _sub_step_buffers(n_objects, n_world)
-    motion = np.empty((n_objects, MOTION_WIDTH))
     id_row = np.empty(SWEPT_WIDTH, np.int64)
     time_row = np.empty(TIMES_WIDTH)
     for k in range(step_start, step_stop):
@@ -207,31 +251,10 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interp
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
-            if not pair_selected(pair_filter, static, a, b):
+            if not pair_selected(pairs, a, b):
                 continue
-            pair_margin = margin[a] + margin[b] + dist_tol
-            if not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
-                continue
-            mesh_a = ps.object_mesh[a]
-            mesh_b = ps.object_mesh[b]
-            n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre[mesh_a], rp0[a]),
-                             ps.sphere_radius[mesh_a], _world_centre(ps.centre[mesh_b], rp0[b]),
-                             ps.sphere_radius[mesh_b])
-            if n_sub > 1:
-                leaves, tri_pairs, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
-                    ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, sub, pair,
-                    leaves, tri_pairs)
-            else:
-                leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, RULE_SWEPT, pair_margin, pair,
-                                               leaves)
-                if n_leaves == 0:
-                    continue
-                for o in (a, b):
-                    ensure_world(ps, rp0, o, k, static, stamp0, world0)
-                    ensure_world(ps, rp1, o, k + 1, static, stamp1, world1)
-                tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, rp0, rp1, motion, world0, world1, a, b,
-                                                                   n_leaves, leaves, time_tol, dist_tol, True,
-                                                                   tri_pairs)
+            buffers, t_first, t_last, tri_a, tri_b = _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static,
+                                                                  time_tol, dist_tol, state, buffers, counts)
             if t_first == np.inf:
                 continue
             id_row[SWEPT_STEP] = k
@@ -243,4 +266,4 @@ def scan_intervals(ps, poses, static, step_start, step_stop, pair_filter, interp
             time_row[T_END] = t_last
             ids, _ = append_row(ids, n_rows, id_row)
             times, n_rows = append_row(times, n_rows, time_row)
-    return ids[:n_rows].copy(), times[:n_rows].copy()
+    return ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -340,10 +340,12 @@ def test_glob_escape():
 
 def test_scan_end_to_end(robot, tmp_path):
     """The shoulder's cylinder dips into the base's box at every frame (by design of the
-    robot), so a scan without the ignore list reports that pair over the whole motion."""
+    robot), so a scan without the ignore list reports that pair over the whole motion,
+    and a scan of the default output (adjacent links ignored) does not."""
     values = joint_values(n_frames=4, seed=1)
     time = np.arange(4) * 0.1
     joints = write_csv(tmp_path / "j.csv", time, values)
+    found = {}
     for flag, name in (("--ignore-adjacent", "a"), ("--no-ignore-adjacent", "b")):
         proc = run_cli("urdf", robot, joints, "-o", tmp_path / f"{name}.h5", "--meshes-out", tmp_path / name,
                        flag)
@@ -357,7 +359,9 @@ def test_scan_end_to_end(robot, tmp_path):
                 f["contacts/object_a"][()], f["contacts/object_b"][()], f["contacts/t_begin"][()],
                 f["contacts/t_end"][()])}
         assert sorted(objects) == sorted(WITH_GEOMETRY)
-    assert pairs[("base", "shoulder")] == (time[0], time[-1])
+        found[name] = pairs
+    assert found["b"][("base", "shoulder")] == (time[0], time[-1])
+    assert ("base", "shoulder") not in found["a"] and ("shoulder", "base") not in found["a"]
 
 
 def test_force_writes_into_a_folder_and_keeps_other_files(robot, tmp_path):

@@ -5,17 +5,19 @@ any work starts, so a bad input never costs a long run or a broken output.
 """
 import errno
 import fnmatch
+import io
 import logging
 import os
 import re
 import stat
+from collections.abc import Mapping
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from . import config
-from .errors import InputError, escape_text
+from .errors import InputError, UsageError, escape_text
 from .files import (check_memory, declared_size, hdf5_object, memory_limit, not_regular, open_hdf5,
                     open_regular, os_problem)
 
@@ -25,8 +27,8 @@ QUATERNION_ORDERS = ("wxyz", "xyzw")
 
 
 class Mesh(NamedTuple):
-    name: str           #: file stem
-    path: Path
+    name: str           #: file stem (or the name of a mesh given in memory)
+    path: Path          #: its file; None for a mesh given in memory
     vertices: np.ndarray  #: float64 (V, 3), body coordinates
     faces: np.ndarray     #: int64 (F, 3), the file's faces in order
 
@@ -173,22 +175,33 @@ def load_mesh(path):
                                   force="mesh", resolver=_mesh_resolver(path.parent))
         except Exception as exc:  # trimesh raises many exception types for bad files
             raise InputError(path, f"cannot load mesh ({_loader_message(exc, path)})", MESH_FILE) from None
-    vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))), dtype=np.float64)
-    faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))), dtype=np.int64)
+    vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))))
+    faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))
+    return _checked_mesh(path.stem, path, vertices, faces, path)
+
+
+def _checked_mesh(name, path, vertices, faces, where):
+    """A Mesh of these arrays, converted to float64 (V, 3) and int64 (F, 3), or InputError
+    (naming ``where``) for no triangles, non-finite or huge coordinates, bad indices."""
+    if vertices.dtype.kind not in "fiu" or faces.dtype.kind not in "iu":
+        raise InputError(where, f"vertices of dtype {vertices.dtype} and faces of dtype {faces.dtype}",
+                         "numeric vertices and integer faces")
+    vertices = vertices.astype(np.float64)
+    faces = faces.astype(np.int64)
     if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
-        raise InputError(path, "mesh has no triangles", "at least one triangle")
+        raise InputError(where, "mesh has no triangles", "at least one triangle")
     if vertices.ndim != 2 or vertices.shape[1] != 3:
-        raise InputError(path, f"vertices have shape {vertices.shape}", "(V, 3) vertices")
+        raise InputError(where, f"vertices have shape {vertices.shape}", "(V, 3) vertices")
     if not np.isfinite(vertices).all():
         bad = int((~np.isfinite(vertices)).any(axis=1).sum())
-        raise InputError(path, f"{bad} vertices are NaN or infinite", "finite vertex coordinates")
+        raise InputError(where, f"{bad} vertices are NaN or infinite", "finite vertex coordinates")
     largest = float(lengths(vertices).max(initial=0.0))
     if not largest <= config.MAX_COORDINATE:
-        raise InputError(path, f"a vertex lies {largest:.3g} from the origin",
+        raise InputError(where, f"a vertex lies {largest:.3g} from the origin",
                          f"vertices within {config.MAX_COORDINATE:g} of the origin")
     if faces.min() < 0 or faces.max() >= vertices.shape[0]:
-        raise InputError(path, "faces index missing vertices", f"indices in [0, {vertices.shape[0]})")
-    return Mesh(path.stem, path, np.ascontiguousarray(vertices), np.ascontiguousarray(faces))
+        raise InputError(where, "faces index missing vertices", f"indices in [0, {vertices.shape[0]})")
+    return Mesh(name, path, np.ascontiguousarray(vertices), np.ascontiguousarray(faces))
 
 
 # --- trajectory ----------------------------------------------------------------------------
@@ -464,7 +477,14 @@ def load_trajectory(path, allow_external=False, max_memory=None):
     Trajectory; raises InputError for anything else that is not as described.
     """
     path = Path(path)
-    with open_hdf5(path, TRAJECTORY) as h5, np.errstate(all="ignore"):
+    with open_hdf5(path, TRAJECTORY) as h5:
+        return _read_trajectory(h5, path, allow_external, max_memory)
+
+
+def _read_trajectory(h5, path, allow_external, max_memory):
+    """A Trajectory from an open h5py.File (a file's or an in-memory one); ``path`` names
+    it in messages."""
+    with np.errstate(all="ignore"):
         src = _Source(h5, path, allow_external)
         try:
             time_ds = _numeric(src, "time", (None,), TIME)
@@ -490,6 +510,59 @@ def load_trajectory(path, allow_external=False, max_memory=None):
     return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)), ignore)
 
 
+# --- inputs in memory (Python API) ------------------------------------------------------------
+
+#: how in-memory trajectories name what files store as datasets
+MEMORY_TRAJECTORY_KEYS = {"time": "time", "names": "objects/name", "mesh": "objects/mesh",
+                          "matrix": "poses/matrix", "position": "poses/position",
+                          "orientation": "poses/orientation", "ignore": "filters/ignore"}
+MEMORY_TRAJECTORY = Path("<trajectory in memory>")
+
+
+def trajectory_from_arrays(data, max_memory=None):
+    """Validate an in-memory trajectory exactly as a file is validated.
+
+    data: a mapping with ``time`` (T,), ``names`` (N,) and either ``matrix`` (T, N, 4,
+    4) or ``position`` (T, N, 3) + ``orientation`` (T, N, 4) + ``quaternion_order``
+    ("wxyz" or "xyzw"); optionally ``mesh`` (N,) and ``ignore`` (K, 2) (the file's
+    objects/mesh and filters/ignore). The file's own dataset names ("poses/matrix",
+    ...) are accepted too. Returns a Trajectory named "<trajectory in memory>".
+    """
+    import h5py
+    known = set(MEMORY_TRAJECTORY_KEYS) | set(MEMORY_TRAJECTORY_KEYS.values()) | {"quaternion_order"}
+    unknown = sorted(str(k) for k in data if k not in known)
+    if unknown:
+        raise UsageError(f"trajectory: unknown key(s) {', '.join(unknown)}; expected {', '.join(sorted(known))}")
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as h5:
+        for key, value in data.items():
+            if key == "quaternion_order" or value is None:
+                continue
+            name = MEMORY_TRAJECTORY_KEYS.get(key, key)
+            array = np.asarray(value)
+            if array.dtype.kind in "OUS":
+                h5.create_dataset(name, data=array.astype(str).astype(object), dtype=h5py.string_dtype())
+            else:
+                h5.create_dataset(name, data=array)
+        if "quaternion_order" in data and "poses/orientation" in h5:
+            h5["poses/orientation"].attrs["quaternion_order"] = str(data["quaternion_order"])
+        return _read_trajectory(h5, MEMORY_TRAJECTORY, False, max_memory)
+
+
+def mesh_from_arrays(name, mesh):
+    """A Mesh from an in-memory mesh: a trimesh.Trimesh or a (vertices, faces) pair (V, 3)
+    and (F, 3), validated as mesh files are. Its path is None."""
+    if hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
+        vertices, faces = mesh.vertices, mesh.faces
+    else:
+        try:
+            vertices, faces = mesh
+        except (TypeError, ValueError):
+            raise UsageError(f"mesh {name!r}: expected a trimesh.Trimesh or a (vertices, faces) pair, "
+                             f"not {type(mesh).__name__}") from None
+    return _checked_mesh(str(name), None, np.asarray(vertices), np.asarray(faces), f"<mesh {name} in memory>")
+
+
 # --- scene: meshes + trajectory ------------------------------------------------------------
 
 class Scene(NamedTuple):
@@ -504,8 +577,15 @@ class Scene(NamedTuple):
     unlisted: tuple = ()   #: names of the meshes the trajectory does not list (static at identity)
 
 
+class MemoryMeshKey(NamedTuple):
+    """Stands for a mesh given in memory where a scene expects a file's Path (name, stem)."""
+    name: str
+    stem: str
+
+
 def _resolve_mesh(files, entry, traj_path, dataset):
-    """Mesh path for an objects/name or objects/mesh entry (stem or file name)."""
+    """Mesh path (or MemoryMeshKey) for an objects/name or objects/mesh entry (stem or file
+    name)."""
     if entry in files:
         return files[entry]
     for path in files.values():
@@ -519,12 +599,14 @@ def _resolve_mesh(files, entry, traj_path, dataset):
 def input_files(meshes_folder, trajectory_path, glob=None):
     """The files a scan reads: the trajectory and every mesh file of the folder (for
     refusing an output path that is one of them). A folder that cannot be listed
-    contributes nothing here; loading reports it."""
-    try:
-        meshes = list(mesh_files(meshes_folder, glob).values())
-    except InputError:
-        meshes = []
-    return [Path(trajectory_path)] + meshes
+    contributes nothing here; loading reports it. Inputs in memory have no files."""
+    meshes = []
+    if not isinstance(meshes_folder, Mapping):
+        try:
+            meshes = list(mesh_files(meshes_folder, glob).values())
+        except InputError:
+            pass
+    return ([] if isinstance(trajectory_path, Mapping) else [Path(trajectory_path)]) + meshes
 
 
 def _check_reach(scene_names, meshes, object_mesh, poses, path, dataset):
@@ -541,15 +623,29 @@ def _check_reach(scene_names, meshes, object_mesh, poses, path, dataset):
                          dataset=dataset)
 
 
-def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=None, glob=None):
+def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=None, glob=None,
+               mesh_loader=None):
     """Validate and load everything a scan needs.
 
-    ``allow_external`` and ``max_memory`` are those of load_trajectory; the memory
-    estimate is checked again with the static meshes' objects added. ``glob``: see
-    mesh_files.
+    meshes_folder: a folder of mesh files, or a mapping {name: trimesh.Trimesh or
+    (vertices, faces)} (mesh_from_arrays); trajectory_path: an HDF5 file, or a mapping
+    of arrays (trajectory_from_arrays). ``allow_external`` and ``max_memory`` are those
+    of load_trajectory; the memory estimate is checked again with the static meshes'
+    objects added. ``glob``: see mesh_files. mesh_loader(path) -> Mesh loads a mesh
+    file (default load_mesh; e.g. a cached loader).
     """
-    files = mesh_files(meshes_folder, glob)
-    traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory)
+    if isinstance(meshes_folder, Mapping):
+        in_memory = {str(k): mesh_from_arrays(k, m) for k, m in meshes_folder.items()}
+        if not in_memory:
+            raise UsageError("meshes: no meshes given")
+        files = {k: MemoryMeshKey(k, k) for k in in_memory}
+    else:
+        in_memory = {}
+        files = mesh_files(meshes_folder, glob)
+    if isinstance(trajectory_path, Mapping):
+        traj = trajectory_from_arrays(trajectory_path, max_memory)
+    else:
+        traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory)
     dataset = "objects/name" if traj.mesh_files is None else "objects/mesh"
     entries = traj.names if traj.mesh_files is None else traj.mesh_files
     used = [_resolve_mesh(files, entry, traj.path, dataset) for entry in entries]
@@ -558,13 +654,14 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
     taken = set(traj.names)
     for p in static_paths:
         if p.stem in taken:
-            raise InputError(traj.path, f"object name {p.stem!r} is also an unused mesh file",
+            raise InputError(traj.path, f"object name {p.stem!r} is also an unused mesh",
                              "names that do not clash with static meshes", dataset="objects/name")
     n_frames, n_objects = traj.time.shape[0], len(traj.names) + len(static_paths)
     check_memory(traj.path, _trajectory_bytes(n_frames, n_objects, 2), memory_limit(max_memory),
                  f"a scene of {n_frames} frames and {n_objects} objects")
     mesh_paths = sorted(used_set) + static_paths
-    meshes = [load_mesh(p) for p in mesh_paths]
+    mesh_loader = mesh_loader or load_mesh
+    meshes = [in_memory[p.stem] if isinstance(p, MemoryMeshKey) else mesh_loader(p) for p in mesh_paths]
     index = {p: i for i, p in enumerate(mesh_paths)}
     object_mesh = np.array([index[p] for p in used + static_paths], dtype=np.int64)
     names = list(traj.names) + [p.stem for p in static_paths]

@@ -32,6 +32,7 @@ from .contacts import CONTACT_COLUMNS, KIND_LABELS, TRIANGLE_PAIR_COLUMNS
 from .errors import InputError, escape_text
 from .files import (check_memory, declared_size, hdf5_object, memory_limit, not_regular,
                     open_hdf5, os_problem)
+from .result import ScanResult
 
 log = logging.getLogger("collide")
 
@@ -40,14 +41,8 @@ FORMAT_VERSION = 1
 CONTACTS_FILE = "a collide contacts file (from collide scan)"
 
 
-class Contacts(NamedTuple):
-    """A contact file's content (all arrays numpy)."""
-    contacts: dict          #: columns of contacts/ (see contacts.CONTACT_COLUMNS)
-    objects: dict           #: name, mesh (lists of str), triangles int64 (N,)
-    frame_time: np.ndarray  #: float64 (T,)
-    triangle_pairs: dict    #: columns of triangle_pairs/, or None
-    attrs: dict             #: file attributes (mode, interpolation, versions, ...)
-    provenance: dict        #: provenance/ attributes
+#: a contacts file's content is a ScanResult (the name is kept for readers of older code)
+Contacts = ScanResult
 
 
 # --- where an output may go ---------------------------------------------------------------
@@ -508,10 +503,21 @@ def _read_contacts(h5, path, limit):
     group = hdf5_object(h5, path, "provenance")
     if group is not None:
         provenance = dict(group.attrs)
-    return Contacts({k: _read_column(ds, CONTACT_COLUMNS[k]) for k, ds in contacts.items()}, objects,
-                    np.asarray(names["frames/time"][()], dtype=np.float64),
-                    {k: _read_column(ds, TRIANGLE_PAIR_COLUMNS[k]) for k, ds in pairs.items()} or None,
-                    attrs, provenance)
+    frame_time = np.asarray(names["frames/time"][()], dtype=np.float64)
+    return ScanResult.from_file({k: _read_column(ds, CONTACT_COLUMNS[k]) for k, ds in contacts.items()}, objects,
+                                frame_time, _frame_index(h5, path, frame_time.shape),
+                                {k: _read_column(ds, TRIANGLE_PAIR_COLUMNS[k]) for k, ds in pairs.items()} or None,
+                                attrs, provenance)
+
+
+def _frame_index(h5, path, shape):
+    """frames/index (int64, the analysed frames' indices in the trajectory) when the file
+    has a valid one, else 0, 1, 2, ..."""
+    import h5py
+    ds = hdf5_object(h5, path, "frames/index")
+    if isinstance(ds, h5py.Dataset) and ds.shape == shape and ds.dtype.kind in "iu":
+        return np.asarray(ds[()], dtype=np.int64)
+    return np.arange(shape[0], dtype=np.int64)
 
 
 def _first_bad(path, dataset, bad, problem):

@@ -8,9 +8,9 @@ import os
 import platform
 import threading
 import time
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,13 +22,14 @@ from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, int
 from .discrete import scan_frames
 from .filters import build_filters, describe
 from .errors import InputError, UsageError
-from .load import input_files, load_scene
+from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
 from .rows import (COUNT_NAMES, COUNT_WIDTH, HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH,
                    PAIR_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_END,
                    TIMES_WIDTH)
+from .result import ScanResult
 from .swept import scan_intervals
 
 log = logging.getLogger("collide")
@@ -38,23 +39,6 @@ NOTE = 25
 logging.addLevelName(NOTE, "note")
 
 MODES = ("continuous", "discrete")
-
-
-@dataclass
-class ScanResult:
-    """What a scan found; ``contacts`` and ``triangle_pairs`` are dicts of numpy columns (SPEC §4)."""
-    object_names: list
-    object_meshes: list
-    object_triangles: np.ndarray
-    frame_time: np.ndarray
-    frame_index: np.ndarray
-    contacts: dict
-    triangle_pairs: dict
-    mode: str
-    interpolation: str
-    provenance: dict
-    versions: dict
-    stats: dict = field(default_factory=dict)
 
 
 def parse_frames(frames, n_frames):
@@ -91,6 +75,39 @@ def _sha256(path):
         for block in iter(lambda: f.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def _arrays_sha256(*arrays):
+    """sha256 of arrays' shapes, dtypes and bytes (inputs given in memory)."""
+    digest = hashlib.sha256()
+    for array in arrays:
+        array = np.ascontiguousarray(array)
+        digest.update(f"{array.dtype.str}{array.shape}".encode())
+        digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
+def _api_call(meshes, trajectory, mode):
+    """How a Python caller's scan is recorded in provenance/command."""
+    def text(x):
+        return "<in memory>" if isinstance(x, Mapping) else repr(str(x))
+    return f"collide.scan({text(meshes)}, {text(trajectory)}, mode={mode!r})"
+
+
+def mesh_label(mesh):
+    """A mesh's file name, or its name when it was given in memory."""
+    return mesh.name if mesh.path is None else mesh.path.name
+
+
+def _inputs(scene, trajectory):
+    """Provenance of the inputs: paths (or "<in memory>") and sha256 of each."""
+    if scene.trajectory_path == MEMORY_TRAJECTORY:
+        traj = {"path": "<in memory>", "sha256": _arrays_sha256(scene.time, scene.poses)}
+    else:
+        traj = {"path": str(trajectory), "sha256": _sha256(scene.trajectory_path)}
+    meshes = {mesh_label(m): _arrays_sha256(m.vertices, m.faces) if m.path is None else _sha256(m.path)
+              for m in scene.meshes}
+    return {"trajectory": traj, "meshes": meshes}
 
 
 def _chunks(n_items, workers):
@@ -430,7 +447,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                   "interpolation": interpolation, "glob": glob, "filters": describe(filters)}
     result = ScanResult(
         object_names=list(scene.names),
-        object_meshes=[scene.meshes[m].path.name for m in scene.object_mesh],
+        object_meshes=[mesh_label(scene.meshes[m]) for m in scene.object_mesh],
         object_triangles=np.array([scene.meshes[m].faces.shape[0] for m in scene.object_mesh]),
         frame_time=frame_time, frame_index=index, contacts=contacts, triangle_pairs=pairs,
         mode=mode, interpolation=interpolation,
@@ -444,10 +461,9 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                "work": {name: int(n) for name, n in zip(COUNT_NAMES, counts)}},
     )
     result.provenance = {
-        "command": command or f"collide.scan({str(meshes)!r}, {str(trajectory)!r}, mode={mode!r})",
+        "command": command or _api_call(meshes, trajectory, mode),
         "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "inputs": {"trajectory": {"path": str(trajectory), "sha256": _sha256(scene.trajectory_path)},
-                   "meshes": {m.path.name: _sha256(m.path) for m in scene.meshes}},
+        "inputs": _inputs(scene, trajectory),
         "parameters": parameters,
         "versions": result.versions,
     }

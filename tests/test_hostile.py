@@ -574,8 +574,8 @@ def test_plot_draws_any_names_and_finite_times_or_refuses(tmp_path_factory, name
                 "frame_begin": np.zeros(1, np.int64), "frame_end": np.array([n - 1]), "kind": np.zeros(1, np.uint8),
                 "tri_a": np.zeros(1, np.int32), "tri_b": np.zeros(1, np.int32),
                 "point_x": np.zeros(1), "point_y": np.zeros(1), "point_z": np.zeros(1)}
-    cf = Contacts(contacts, {"name": names, "mesh": names, "triangles": np.ones(len(names), np.int64)},
-                  frame_time, None, {"mode": "discrete"}, {})
+    cf = Contacts.from_file(contacts, {"name": names, "mesh": names, "triangles": np.ones(len(names), np.int64)},
+                            frame_time, np.arange(n), None, {"mode": "discrete"}, {})
     png = tmp_path_factory.mktemp("plot") / "t.png"
     try:
         plot_timeline(cf, png, title)

@@ -1,0 +1,79 @@
+"""The Python API with inputs in memory: the same result as from files, the same type from
+collide.scan and collide.read_contacts, and tables for pandas."""
+import numpy as np
+import pytest
+import trimesh
+
+import collide
+from collide.errors import InputError, UsageError
+from conftest import REPO
+from collide.load import load_mesh, load_trajectory
+
+FIXTURE = REPO / "examples" / "fixture"
+
+
+def fixture_in_memory():
+    """The bundled fixture scene as arrays: meshes as Trimesh objects and (vertices, faces)
+    pairs, the trajectory as a dict of its datasets."""
+    import h5py
+    meshes = {}
+    for k, path in enumerate(sorted((FIXTURE / "meshes").iterdir())):
+        mesh = load_mesh(path)
+        meshes[path.stem] = (trimesh.Trimesh(mesh.vertices, mesh.faces, process=False) if k % 2
+                             else (mesh.vertices, mesh.faces))
+    with h5py.File(FIXTURE / "traj.h5", "r") as f:
+        trajectory = {"time": f["time"][()], "names": f["objects/name"].asstr()[()],
+                      "mesh": [m.split(".")[0] for m in f["objects/mesh"].asstr()[()]],
+                      "position": f["poses/position"][()],
+                      "orientation": f["poses/orientation"][()], "quaternion_order": "wxyz"}
+    return meshes, trajectory
+
+
+@pytest.mark.parametrize("mode", ["discrete", "continuous"])
+def test_arrays_in_memory_give_the_same_contacts_as_files(mode):
+    from_files = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode=mode)
+    meshes, trajectory = fixture_in_memory()
+    in_memory = collide.scan(meshes, trajectory, mode=mode)
+    assert in_memory.object_names == from_files.object_names
+    assert in_memory.object_meshes == [m.split(".")[0] for m in from_files.object_meshes]
+    for name, column in from_files.contacts.items():
+        np.testing.assert_array_equal(in_memory.contacts[name], column, err_msg=name)
+    assert in_memory.provenance["inputs"]["trajectory"]["path"] == "<in memory>"
+    # mixing a folder of meshes with a trajectory in memory works too
+    mixed = collide.scan(FIXTURE / "meshes", trajectory, mode=mode)
+    np.testing.assert_array_equal(mixed.contacts["t_begin"], from_files.contacts["t_begin"])
+
+
+def test_scan_and_read_contacts_return_the_same_type_with_dataframes(tmp_path):
+    pd = pytest.importorskip("pandas")
+    result = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", triangle_pairs=True,
+                          output=tmp_path / "c.h5")
+    back = collide.read_contacts(tmp_path / "c.h5")
+    assert type(back) is type(result) is collide.ScanResult
+    assert back.object_names == result.object_names and back.mode == "discrete"
+    np.testing.assert_array_equal(back.frame_index, result.frame_index)
+    for frame in (result.to_dataframe(), back.to_dataframe()):
+        assert list(frame.columns[:2]) == ["a", "b"] and len(frame) == result.contacts["t_begin"].size
+        names = [tuple(sorted(p)) for p in zip(frame["a"], frame["b"])]
+        assert names == [tuple(sorted((result.object_names[a], result.object_names[b])))
+                         for a, b in zip(result.contacts["object_a"], result.contacts["object_b"])]
+    pairs = back.to_dataframe("triangle-pairs")
+    assert isinstance(pairs, pd.DataFrame) and len(pairs) == result.triangle_pairs["frame"].size
+    np.testing.assert_array_equal(pairs["time"].to_numpy(), back.frame_time[pairs["frame"].to_numpy()])
+
+
+def test_bad_arrays_are_bad_input_naming_what():
+    meshes, trajectory = fixture_in_memory()
+    bad = dict(trajectory, orientation=trajectory["orientation"] * 2.0)
+    with pytest.raises(InputError, match=r"<trajectory in memory>:poses/orientation: quaternion of norm 2"):
+        collide.scan(meshes, bad, mode="discrete")
+    with pytest.raises(InputError, match="objects/name"):
+        collide.scan(meshes, {k: v for k, v in trajectory.items() if k != "names"}, mode="discrete")
+    with pytest.raises(UsageError, match="unknown key"):
+        collide.scan(meshes, dict(trajectory, speed=1.0), mode="discrete")
+    broken = dict(meshes, peg=(np.zeros((3, 3)), np.array([[0, 1, 5]])))
+    with pytest.raises(InputError, match="faces index missing vertices"):
+        collide.scan(broken, trajectory, mode="discrete")
+    with pytest.raises(UsageError, match="expected a trimesh.Trimesh"):
+        collide.scan(dict(meshes, peg="peg"), trajectory, mode="discrete")
+    assert load_trajectory(FIXTURE / "traj.h5").names == list(trajectory["names"])

@@ -286,7 +286,9 @@ def _read_member(archive, name, dtype, ndim, limit):
         else:
             raise _Unusable(f"member {name} has .npy version {version}")
         if found != np.dtype(dtype) or fortran or len(shape) != ndim:
-            raise _Unusable(f"member {name} is {found} {shape}, expected {np.dtype(dtype)} with {ndim} dims")
+            order = " in Fortran order" if fortran else ""
+            raise _Unusable(f"member {name} is {found} {shape}{order}, expected C-ordered {np.dtype(dtype)} "
+                            f"with {ndim} dimensions")
         n_bytes = int(np.prod(shape, dtype=np.int64)) * found.itemsize
         if n_bytes != info.file_size - f.tell():
             raise _Unusable(f"member {name} holds {info.file_size - f.tell()} bytes for shape {shape}")
@@ -421,14 +423,17 @@ def _store(folder, path, key, arrays, stats):
         fd, temp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=_TEMP_SUFFIX, dir=folder)
         with os.fdopen(fd, "wb") as f:
             np.savez(f, header=header, **{k: np.ascontiguousarray(a) for k, a in arrays.items()})
-        os.replace(temp, path)
-        temp = None
-    except OSError as exc:
+    except OSError as exc:  # cannot create or fill files here (permissions, full disk, ...)
         _note_folder(folder, "read-only", f"cannot write ({_os_reason(exc)})")
-        return
-    finally:
         if temp is not None:
             _remove(Path(temp))
+        return
+    try:
+        os.replace(temp, path)
+    except OSError as exc:  # this name only (a folder in the way; on Windows, a reader)
+        log.debug("mesh cache: %s not stored (%s)", path.name, _os_reason(exc))
+        _remove(Path(temp))
+        return
     _count(stats, stored=1)
     _count(stats, evicted=trim_cache(folder, config.CACHE_MAX_BYTES))
 

@@ -14,7 +14,7 @@ import trimesh
 
 from collide import config
 from collide import meshcache as mc
-from collide.bvh import BVH, build_mesh_bvh
+from collide.bvh import BVH, build_mesh_bvh, triangle_boxes
 from collide.errors import InputError
 from collide.load import load_mesh
 from conftest import DATA, REPO
@@ -450,6 +450,9 @@ def test_bvh_checks_accept_every_builder_output():
     """No false alarms: the checks pass on real trees of every rule and leaf size."""
     for name in ("rob.obj", "env.obj"):
         mesh = load_mesh(DATA / name)
+        lo, hi, _ = triangle_boxes(mesh.vertices, mesh.faces)
+        assert all(same_arrays(a, b) for a, b in zip(mc._triangle_box_corners(mesh.vertices, mesh.faces),
+                                                     (lo, hi)))
         for split in ("sah", "median", "mean"):
             for leaf_size in (1, 2, 4, 7):
                 bvh = build_mesh_bvh(mesh.vertices, mesh.faces, split, leaf_size)

@@ -43,6 +43,7 @@ import hashlib
 import json
 import logging
 import os
+import re
 import sys
 import tempfile
 import threading
@@ -56,6 +57,7 @@ import numpy as np
 from . import config
 from ._version import __version__
 from .bvh import BVH, build_mesh_bvh
+from .errors import escape_text
 from .files import open_regular
 from .load import Mesh, lengths, load_mesh
 
@@ -79,10 +81,12 @@ CACHEABLE_SUFFIXES = frozenset({".obj", ".stl", ".ply", ".off"})
 #: Environment variable naming the cache folder.
 CACHE_ENV = "COLLIDE_CACHE_DIR"
 
-#: Entry file names this module writes and may delete.
-_ENTRY_PREFIXES = ("mesh-", "bvh-")
+#: The only file names this module writes, and so the only ones it ever deletes (the
+#: cache folder may be shared with other files): entries and their temporary files.
 _ENTRY_SUFFIX = ".npz"
 _TEMP_SUFFIX = ".tmp"
+_ENTRY_NAME = re.compile(r"(mesh|bvh)-[0-9a-f]{64}\.npz")
+_TEMP_NAME = re.compile(r"\.(mesh|bvh)-[0-9a-f]{64}\.[A-Za-z0-9_]+\.tmp")
 
 #: Temporary files older than this are left over from a killed writer. Seconds.
 _STALE_TEMP_SECONDS = 3600.0
@@ -166,7 +170,8 @@ def _note_folder(folder, state, reason):
             return
         _folder_state[str(folder)] = state
     what = "caching is off" if state == "unusable" else "new meshes and BVHs are not cached"
-    log.info("mesh cache %s: %s; %s", folder, reason, what)
+    log.info("mesh cache %s: %s; %s (set %s to a writable folder)", escape_text(folder), reason, what,
+             CACHE_ENV)
 
 
 def _usable_folder():
@@ -434,17 +439,18 @@ def _store(folder, path, key, arrays, stats):
         fd, temp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=_TEMP_SUFFIX, dir=folder)
         with os.fdopen(fd, "wb") as f:
             np.savez(f, header=header, **{k: np.ascontiguousarray(a) for k, a in arrays.items()})
+        try:
+            os.replace(temp, path)
+        except OSError as exc:  # this name only (a folder in the way; on Windows, a reader)
+            log.debug("mesh cache: %s not stored (%s)", path.name, _os_reason(exc))
+            return
+        temp = None
     except OSError as exc:  # cannot create or fill files here (permissions, full disk, ...)
         _note_folder(folder, "read-only", f"cannot write ({_os_reason(exc)})")
-        if temp is not None:
+        return
+    finally:
+        if temp is not None:  # also on Ctrl-C
             _remove(Path(temp))
-        return
-    try:
-        os.replace(temp, path)
-    except OSError as exc:  # this name only (a folder in the way; on Windows, a reader)
-        log.debug("mesh cache: %s not stored (%s)", path.name, _os_reason(exc))
-        _remove(Path(temp))
-        return
     _count(stats, stored=1)
     _count(stats, evicted=trim_cache(folder, config.CACHE_MAX_BYTES))
 
@@ -469,10 +475,11 @@ def _entries(folder):
                     info = item.stat(follow_symlinks=False)
                 except OSError:
                     continue
-                if name.startswith(_ENTRY_PREFIXES) and name.endswith(_ENTRY_SUFFIX) and item.is_file():
+                if not item.is_file(follow_symlinks=False):
+                    continue
+                if _ENTRY_NAME.fullmatch(name):
                     entries.append((info.st_mtime, info.st_size, Path(item.path)))
-                elif (name.startswith(".") and name.endswith(_TEMP_SUFFIX)
-                      and now - info.st_mtime > _STALE_TEMP_SECONDS):
+                elif _TEMP_NAME.fullmatch(name) and now - info.st_mtime > _STALE_TEMP_SECONDS:
                     stale.append(Path(item.path))
     except OSError:
         pass
@@ -547,8 +554,9 @@ def build_mesh_bvh_cached(vertices, faces, split="sah", leaf_size=None, use_cach
     """``collide.bvh.build_mesh_bvh(vertices, faces, split, leaf_size)``, read from the
     cache when possible (same arguments; vertices float64 (V, 3), faces int64 (F, 3)).
     Returns a BVH identical to the builder's; raises what it raises."""
+    vertices, faces = np.asarray(vertices), np.asarray(faces)
     folder = _usable_folder() if use_cache else None
-    if folder is None or faces.shape[0] == 0:
+    if folder is None or faces.ndim != 2 or faces.shape[0] == 0:
         _count(stats, bvh_misses=1)
         return build_mesh_bvh(vertices, faces, split, leaf_size)
     key = bvh_key(vertices, faces, split, leaf_size)

@@ -6,6 +6,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 
 import numpy as np
@@ -635,12 +636,19 @@ def test_size_clear_and_stale_temporary_files(cache, rob):
     mc.mesh_bvh_cached(mesh)
     count, total = mc.cache_size()
     assert count == 2 and total == sum(p.stat().st_size for p in cache.glob("*.npz"))
-    stale, fresh, other = cache / ".bvh-x.abc.tmp", cache / ".bvh-y.abc.tmp", cache / "notes.txt"
-    for p in (stale, fresh, other):
+    digest = "0" * 64
+    stale, fresh = cache / f".bvh-{digest}.abc_12.tmp", cache / f".mesh-{digest}.xyz.tmp"
+    others = [cache / "notes.txt", cache / ".other.abc.tmp", cache / f"mesh-{digest}.npz.bak",
+              cache / "mesh-mine.npz"]
+    fd, killed = tempfile.mkstemp(prefix=f".mesh-{digest}.", suffix=".tmp", dir=cache)  # as _store names it
+    os.close(fd)
+    os.utime(killed, (1e9, 1e9))
+    for p in [stale, fresh] + others:
         p.write_text("x")
-    os.utime(stale, (1e9, 1e9))
+        os.utime(p, (1e9, 1e9))
+    os.utime(fresh)
     assert mc.clear_cache() == (2, total)
-    assert sorted(p.name for p in cache.iterdir()) == sorted([fresh.name, other.name])
+    assert sorted(p.name for p in cache.iterdir()) == sorted(p.name for p in [fresh] + others)
     assert mc.cache_size() == (0, 0)
 
 

@@ -106,3 +106,13 @@ MAX_TIME_TOL = 1.0
 #: collide plot draws times of magnitude up to this (time units); matplotlib's
 #: axis arithmetic (margins, tick formatting) overflows near float64's maximum.
 PLOT_MAX_TIME = 1e300
+
+# --- mesh cache (collide.meshcache) ---------------------------------------------
+#: Total size of the mesh cache's entries (parsed meshes and BVHs). After each new
+#: entry, the least recently used entries are deleted until the total is at most
+#: this. Bytes.
+CACHE_MAX_BYTES = 1 << 30
+
+#: Meshes or BVHs whose cache entry would be larger than this are not cached (they
+#: would push out many smaller entries). Bytes.
+CACHE_MAX_ENTRY_BYTES = 1 << 28

@@ -292,11 +292,14 @@ def cli():
 @click.option("--allow-external-data", is_flag=True,
               help="Follow HDF5 external links, external storage and virtual datasets of the trajectory "
                    "(they read other files; refused by default).")
+@click.option("--no-cache", is_flag=True,
+              help="Parse every mesh and build every BVH afresh, without reading or writing the mesh cache "
+                   "(COLLIDE_CACHE_DIR; default ~/.cache/collide).")
 @memory_option
 @verbosity_options
 def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, only, glob, split, leaf_size,
          triangle_pairs, frames, fail_on_contact, workers, scheduler, time_tol, fmt, allow_external_data,
-         max_memory):
+         no_cache, max_memory):
     """Find when, where and for how long the meshes in MESHES touch along TRAJECTORY."""
     bar = None
     state = {"done": 0}
@@ -318,7 +321,7 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
                               warn_angle=warn_angle, ignore=ignore, only=only, glob=glob,
                               output=output, progress=progress,
                               command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
-                              allow_external_data=allow_external_data)
+                              allow_external_data=allow_external_data, cache=not no_cache)
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
@@ -334,7 +337,8 @@ def _print_summary(result, output, fmt):
                                                                          result.contacts["object_b"].tolist()))),
                "frames_in_contact": s["frames_in_contact"], "triangle_pairs": s["triangle_pairs"],
                "static_objects": s["static_objects"], "filters": s["filters"],
-               "seconds": {k[:-2]: round(v, 4) for k, v in s.items() if k.endswith("_s")}, "work": s["work"]}
+               "seconds": {k[:-2]: round(v, 4) for k, v in s.items() if k.endswith("_s")}, "work": s["work"],
+               "cache": s.get("cache")}
     if fmt == "json":
         click.echo(_json(summary))
         return
@@ -342,6 +346,11 @@ def _print_summary(result, output, fmt):
                f"({summary['frames_in_contact']} of {s['frames']} frames in contact, {s['objects']} objects, "
                f"{result.mode}) -> {output}")
     click.echo("time: " + ", ".join(f"{k} {v:.3f} s" for k, v in summary["seconds"].items()))
+    cache = s.get("cache")
+    if cache is not None:
+        click.echo("cache: off" if not cache["enabled"] else
+                   f"cache: {cache['mesh_hits']} of {cache['mesh_hits'] + cache['mesh_misses']} meshes and "
+                   f"{cache['bvh_hits']} of {cache['bvh_hits'] + cache['bvh_misses']} BVHs reused")
     logging.getLogger("collide").info("work: %s", ", ".join(f"{k} {v}" for k, v in summary["work"].items()))
 
 

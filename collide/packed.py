@@ -35,10 +35,15 @@ class PackedScene(NamedTuple):
     world_start: np.ndarray  #: int64 (N + 1,)
 
 
-def pack_scene(meshes, object_mesh, split="sah", leaf_size=None):
-    """Build one BVH per mesh and pack everything. Returns (PackedScene, build seconds)."""
+def pack_scene(meshes, object_mesh, split="sah", leaf_size=None, build_bvh=None):
+    """Build one BVH per mesh and pack everything. Returns (PackedScene, build seconds).
+
+    ``build_bvh`` (default build_mesh_bvh; same signature) builds one mesh's BVH, e.g.
+    meshcache.MeshCache().build_mesh_bvh.
+    """
     start = time.perf_counter()
-    bvhs = [build_mesh_bvh(m.vertices, m.faces, split, leaf_size) for m in meshes]
+    build_bvh = build_mesh_bvh if build_bvh is None else build_bvh
+    bvhs = [build_bvh(m.vertices, m.faces, split, leaf_size) for m in meshes]
     build_seconds = time.perf_counter() - start
     n_verts = np.array([m.vertices.shape[0] for m in meshes], dtype=np.int64)
     n_faces = np.array([m.faces.shape[0] for m in meshes], dtype=np.int64)

@@ -23,6 +23,7 @@ from .discrete import scan_frames
 from .filters import build_filters, describe
 from .errors import InputError, UsageError
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
+from .meshcache import MeshCache
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
@@ -99,14 +100,15 @@ def mesh_label(mesh):
     return mesh.name if mesh.path is None else mesh.path.name
 
 
-def _inputs(scene, trajectory):
-    """Provenance of the inputs: paths (or "<in memory>") and sha256 of each."""
+def _inputs(scene, trajectory, digests):
+    """Provenance of the inputs: paths (or "<in memory>") and sha256 of each (digests:
+    {path: sha256} already computed)."""
     if scene.trajectory_path == MEMORY_TRAJECTORY:
         traj = {"path": "<in memory>", "sha256": _arrays_sha256(scene.time, scene.poses)}
     else:
         traj = {"path": str(trajectory), "sha256": _sha256(scene.trajectory_path)}
-    meshes = {mesh_label(m): _arrays_sha256(m.vertices, m.faces) if m.path is None else _sha256(m.path)
-              for m in scene.meshes}
+    meshes = {mesh_label(m): _arrays_sha256(m.vertices, m.faces) if m.path is None
+              else digests.get(m.path) or _sha256(m.path) for m in scene.meshes}
     return {"trajectory": traj, "meshes": meshes}
 
 
@@ -377,7 +379,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          triangle_pairs=False, frames=None, workers=None, scheduler=None,
          time_tol=config.TIME_TOL, interpolation="screw", warn_angle=config.SCREW_WARN_DEG,
          ignore=(), only=(), glob=None, output=None, progress=None, command=None, max_memory=None,
-         allow_external_data=False):
+         allow_external_data=False, cache=True):
     """Find when, where and for how long the meshes touch along the trajectory.
 
     Parameters mirror ``collide scan``; ``time_tol`` is a fraction of the frame
@@ -388,7 +390,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     trajectory's filters/ignore); ``glob``: which files of the meshes folder are
     meshes. ``progress(done, total)`` is called as work completes. With ``output``
     the result is also written there (atomically; never over an input).
-    ``max_memory`` and ``allow_external_data``: see load.load_trajectory. Returns a
+    ``max_memory`` and ``allow_external_data``: see load.load_trajectory. ``cache=False``
+    parses every mesh and builds every BVH afresh (see collide.meshcache). Returns a
     ScanResult.
     """
     workers = _check_options(mode, interpolation, workers)
@@ -397,8 +400,9 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         check_output_path(output, inputs)  # fail before the work, not after
     timings = {}
     start = time.perf_counter()
+    mesh_cache = MeshCache(enabled=cache)
     scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
-                       glob=glob)
+                       glob=glob, mesh_loader=mesh_cache.load_mesh)
     filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
     if scene.unlisted:
         log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
@@ -411,7 +415,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
 
     continuous = mode == "continuous"
     with _compile_note():
-        ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size)
+        ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
+                                            build_bvh=mesh_cache.build_mesh_bvh)
         start = time.perf_counter()
         dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
         if continuous:
@@ -458,12 +463,13 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                "frames_in_contact": int(np.unique(hits[:, HIT_FRAME]).size),
                "triangle_pairs": int(hits[:, HIT_PAIRS].sum()) if triangle_pairs else None,
                "static_objects": list(scene.unlisted), "filters": describe(filters),
-               "work": {name: int(n) for name, n in zip(COUNT_NAMES, counts)}},
+               "work": {name: int(n) for name, n in zip(COUNT_NAMES, counts)},
+               "cache": {"enabled": bool(cache), **mesh_cache.stats.as_dict()}},
     )
     result.provenance = {
         "command": command or _api_call(meshes, trajectory, mode),
         "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "inputs": _inputs(scene, trajectory),
+        "inputs": _inputs(scene, trajectory, mesh_cache.digests),
         "parameters": parameters,
         "versions": result.versions,
     }

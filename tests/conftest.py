@@ -15,6 +15,19 @@ REPO = TESTS.parent
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _private_mesh_cache(tmp_path_factory):
+    """The tests' mesh cache lives in a temporary folder, never in the user's cache
+    (subprocesses inherit the variable)."""
+    previous = os.environ.get("COLLIDE_CACHE_DIR")
+    os.environ["COLLIDE_CACHE_DIR"] = str(tmp_path_factory.mktemp("mesh-cache"))
+    yield
+    if previous is None:
+        os.environ.pop("COLLIDE_CACHE_DIR", None)
+    else:
+        os.environ["COLLIDE_CACHE_DIR"] = previous
+
+
 def write_trajectory(path, time, names, position=None, orientation=None, order="wxyz",
                      matrix=None, mesh=None):
     """Write a SPEC §2.2 trajectory; pass position+orientation or matrix."""

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import trimesh
 
+import collide
 from collide import config
 from collide import meshcache as mc
 from collide.bvh import BVH, build_mesh_bvh, triangle_boxes
@@ -671,3 +672,29 @@ def test_cache_dir_follows_the_environment_and_the_platform(tmp_path, monkeypatc
     monkeypatch.setattr(sys, "platform", "win32")
     monkeypatch.setenv("LOCALAPPDATA", str(tmp_path / "local"))
     assert mc.cache_dir() == tmp_path / "local" / "collide" / "Cache"
+
+
+def test_second_scan_reuses_parsed_meshes_and_bvhs(tmp_path, monkeypatch):
+    """Through the command line: a warm scan parses nothing and builds no BVH (the
+    summary's cache line), gives the same contacts and provenance hashes, and --no-cache
+    bypasses the cache."""
+    from conftest import run_cli
+    monkeypatch.setenv("COLLIDE_CACHE_DIR", str(tmp_path / "cache"))
+    fixture = REPO / "examples" / "fixture"
+    summaries, files = [], []
+    for k, extra in enumerate(([], [], ["--no-cache"])):
+        out = tmp_path / f"c{k}.h5"
+        proc = run_cli("scan", fixture / "meshes", fixture / "traj.h5", "-o", out, "--mode", "discrete",
+                       "--format", "json", *extra)
+        assert proc.returncode == 0, proc.stderr
+        summaries.append(json.loads(proc.stdout)["cache"])
+        files.append(collide.read_contacts(out))
+    cold, warm, off = summaries
+    assert cold["enabled"] and cold["mesh_hits"] == 0 and cold["bvh_hits"] == 0
+    assert warm["mesh_hits"] == 4 and warm["mesh_misses"] == 0 and warm["bvh_hits"] == 4
+    assert off == {**off, "enabled": False, "mesh_hits": 0, "bvh_hits": 0}
+    for other in files[1:]:
+        for name, column in files[0].contacts.items():
+            np.testing.assert_array_equal(other.contacts[name], column, err_msg=name)
+        assert json.loads(other.provenance["inputs"])["meshes"] == \
+            json.loads(files[0].provenance["inputs"])["meshes"]

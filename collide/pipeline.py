@@ -6,10 +6,8 @@ import hashlib
 import logging
 import os
 import platform
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +19,7 @@ from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, int
                        intervals_from_steps, sort_columns)
 from .discrete import ALL_PAIRS, ONLY_STATIC_PAIRS, SKIP_STATIC_PAIRS, scan_frames
 from .errors import InputError, UsageError
+from .jit_events import compile_notice
 from .load import input_files, load_scene
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
@@ -295,20 +294,11 @@ def _fill_contact_points(contacts, where, scene, poses, interpolation):
         contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
 
 
-@contextmanager
-def _compile_note(seconds=1.5):
-    """Tell the user (stderr, once) when the body takes longer than ``seconds``: on a
-    machine's first run the numba kernels compile (about a minute), with no other sign
-    of life."""
-    note = threading.Timer(seconds, log.warning, ("compiling collide's numba kernels for this machine "
-                                                 "(first run only: about a minute; later runs load them "
-                                                 "from numba's cache)",))
-    note.daemon = True
-    note.start()
-    try:
-        yield
-    finally:
-        note.cancel()
+def _compile_note(continuous):
+    """Announce on stderr when numba really compiles (a machine's first run: about a
+    minute), never on warm runs (collide.jit_events); "n of m" counts the top-level
+    kernels that _compile_kernels prepares."""
+    return compile_notice([scan_frames, contact_point] + ([scan_intervals] if continuous else []))
 
 
 def _compile_kernels(ps, poses, static, continuous, interpolation, time_tol, dist_tol):
@@ -360,7 +350,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     timings["load_s"] = time.perf_counter() - start
 
     continuous = mode == "continuous"
-    with _compile_note():
+    with _compile_note(continuous):
         ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size)
         start = time.perf_counter()
         dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)

@@ -328,8 +328,9 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, lea
         bar.update(done - state["done"])
         state["done"] = done
 
-    from collide.jit_events import show_progress
-    show_progress(sys.stderr if _state["verbosity"] >= 0 and sys.stderr.isatty() else None)
+    from collide.jit_events import report_to
+    if _state["verbosity"] >= 0:  # -q: only the log line, which -q silences
+        report_to(sys.stderr, live=sys.stderr.isatty())
     try:
         result = collide.scan(meshes, trajectory, mode=mode, split=split, leaf_size=leaf_size,
                               triangle_pairs=triangle_pairs, frames=frames, workers=workers,
@@ -338,7 +339,7 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, split, lea
                               command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
                               allow_external_data=allow_external_data)
     finally:
-        show_progress(None)
+        report_to(None)
         if bar is not None:
             bar.__exit__(None, None, None)
     _print_summary(result, output, fmt)

@@ -7,10 +7,12 @@ listens to numba's own compile events (``numba.core.event``, kind ``"numba:compi
 while a scan prepares its kernels, so the notice appears exactly when numba compiles,
 never on a warm run however slow the machine:
 
-* by default (library use, or stderr not a terminal): one log line (``collide``
-  logger, WARNING) when compiling starts, so that a CI log explains a slow first run;
-* after ``show_progress(stream)`` (the command line, on a terminal, not ``-q``): one
-  line kept up to date in place, naming the kernel being compiled, "n of m" (m: the
+* by default (library use): one log line (``collide`` logger, WARNING) when
+  compiling starts;
+* after ``report_to(stream)`` (the command line, stderr not a terminal): that line
+  written to ``stream`` without a level, so that a CI log explains a slow first run;
+* after ``report_to(stream, live=True)`` (the command line on a terminal): one line
+  kept up to date in place, naming the kernel being compiled, "n of m" (m: the
   top-level kernels given to ``compile_notice``) and the seconds so far, ended by a
   line saying how long compiling took.
 
@@ -23,19 +25,28 @@ import threading
 import time
 from contextlib import contextmanager, nullcontext
 
+from .errors import escape_text
+
 log = logging.getLogger("collide")
 
-NOTICE = ("compiling collide's numba kernels for this machine (first run only: about a minute; "
-          "later runs load them from numba's cache)")
-_PROGRESS_HEAD = "collide: compiling numba kernels for this machine (first run only): "
+NOTICE = ("compiling collide's numba kernels for this machine (first run only: a minute or more; "
+          "later runs load them from numba's cache{where})")
 
-_settings = {"stream": None}
+_settings = {"stream": None, "live": False}
 
 
-def show_progress(stream):
-    """Show compile progress in place on ``stream`` (a terminal); None: one log line
-    instead (the default)."""
-    _settings["stream"] = stream
+def report_to(stream=None, live=False):
+    """Where compile notices go: None, the ``collide`` log (the default); else one line
+    on ``stream``, or with ``live`` (a terminal) a progress line kept up to date."""
+    _settings["stream"], _settings["live"] = stream, bool(live and stream is not None)
+
+
+def _cache_path(dispatcher):
+    """The folder numba caches ``dispatcher`` in (None: not cached, or unknown)."""
+    try:
+        return dispatcher.stats.cache_path
+    except AttributeError:
+        return None
 
 
 def kernel_name(dispatcher):
@@ -54,12 +65,17 @@ def compile_notice(kernels):
         from numba.core import event
     except ImportError:  # a numba without the event API: no notice rather than a wrong one
         return nullcontext()
-    return _notice(event, list(kernels), _settings["stream"])
+    return _notice(event, list(kernels), _settings["stream"], _settings["live"])
 
 
 @contextmanager
-def _notice(event, kernels, stream):
-    report = _TerminalReport(stream, len(kernels)) if stream is not None else _LogReport()
+def _notice(event, kernels, stream, live):
+    folder = next((_cache_path(k) for k in kernels if _cache_path(k)), None)
+    notice = NOTICE.format(where=f" in {folder}" if folder else "")
+    if stream is None:
+        report = _LogReport(notice)
+    else:
+        report = _TerminalReport(stream, len(kernels)) if live else _LineReport(notice, stream)
     listener = _listener_class(event)(kernels, report)
     try:
         with event.install_listener("numba:compile", listener):
@@ -111,16 +127,34 @@ def _listener_class(event):
 class _LogReport:
     """One log line when compiling starts."""
 
-    def __init__(self):
+    def __init__(self, notice):
+        self.notice = notice
         self.said = False
 
     def compiling(self, name, n):
         if not self.said:
             self.said = True
-            log.warning(NOTICE)
+            log.warning("%s", self.notice)
 
     def close(self, success):
         pass
+
+
+class _LineReport(_LogReport):
+    """One line on a stream (not a terminal) when compiling starts."""
+
+    def __init__(self, notice, stream):
+        super().__init__(notice)
+        self.stream = stream
+
+    def compiling(self, name, n):
+        if not self.said:
+            self.said = True
+            try:
+                self.stream.write(escape_text(f"collide: {self.notice}") + "\n")
+                self.stream.flush()
+            except (OSError, ValueError):
+                pass
 
 
 class _TerminalReport:
@@ -134,7 +168,7 @@ class _TerminalReport:
         self.total = total
         self.lock = threading.Lock()
         self.start = None
-        self.text = ""
+        self.head = self.name = ""
         self.shown = 0  # characters of the line now on screen
         self.stop = threading.Event()
         self.ticker = None
@@ -148,7 +182,9 @@ class _TerminalReport:
                 self._watch_log()
                 self.ticker = threading.Thread(target=self._tick, name="collide-compile-progress", daemon=True)
                 self.ticker.start()
-            self.text = f"kernel {n} of {self.total}, {name}" if n is not None else name
+            self.head = (f"collide: compiling kernel {n} of {self.total} (first run only): " if n is not None
+                         else "collide: compiling kernels (first run only): ")
+            self.name = name
             self._draw()
 
     def _tick(self):
@@ -158,11 +194,11 @@ class _TerminalReport:
 
     def _draw(self):
         """Write the line (call with the lock held)."""
-        seconds = time.monotonic() - self.start
-        line = f"{_PROGRESS_HEAD}{self.text}, {seconds:.0f} s"
-        width = max(20, shutil.get_terminal_size((80, 24)).columns - 1)  # never wrap: \r redraws one row
-        if len(line) > width:
-            line = line[:width - 3] + "..."
+        tail = f", {time.monotonic() - self.start:.0f} s"
+        width = shutil.get_terminal_size((80, 24)).columns - 1  # never wrap: \r redraws one row
+        room = max(12, width - len(self.head) - len(tail))
+        name = self.name if len(self.name) <= room else "..." + self.name[-(room - 3):]
+        line = self.head + name + tail
         self._write("\r" + line.ljust(self.shown))
         self.shown = len(line)
 
@@ -225,7 +261,7 @@ def cache_folder():
     the source tree; an installed one: site-packages), else numba's per-user cache folder
     (``~/.cache/numba/collide_<hash>``). ``why`` may be empty. Imports numba."""
     from .closest import contact_point  # a cached kernel; all of collide's share one folder
-    folder = contact_point.stats.cache_path
+    folder = _cache_path(contact_point)
     try:
         locator = type(contact_point._cache._impl.locator).__name__.lstrip("_")
     except AttributeError:  # numba's internals moved: the folder is still right

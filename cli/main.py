@@ -27,7 +27,9 @@ def _running_as_program():
 
 _STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 _AS_PROGRAM = _running_as_program()
-if _AS_PROGRAM:  # before the slow imports below (numpy, h5py, numba): Ctrl-C there is no traceback
+# Before any other import (click here; numpy, h5py, numba once a command runs, where main's
+# handlers take over): Ctrl-C while starting up gives no traceback.
+if _AS_PROGRAM:
     for _signum in _STOP_SIGNALS:
         if signal.getsignal(_signum) in (signal.default_int_handler, signal.SIG_DFL):
             signal.signal(_signum, _stop_quietly)

@@ -113,8 +113,8 @@ def _listener_class(event):
                 index = next((i for i, k in enumerate(self.kernels) if k is dispatcher), None)
                 if index is not None and index not in self.seen:
                     self.seen.append(index)
-                self.report.compiling(kernel_name(dispatcher),
-                                      len(self.seen) if index is not None else None)
+                self.report.compiling(kernel_name(dispatcher),  # n: the kernel's place in compile order
+                                      self.seen.index(index) + 1 if index is not None else None)
 
             def on_end(self, event):
                 if threading.get_ident() == self.thread:

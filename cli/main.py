@@ -27,7 +27,9 @@ def _running_as_program():
 
 _STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 _AS_PROGRAM = _running_as_program()
-if _AS_PROGRAM:  # before the slow imports below (numpy, h5py, numba): Ctrl-C there is no traceback
+# Before any other import (click here; numpy, h5py, numba once a command runs, where main's
+# handlers take over): Ctrl-C while starting up gives no traceback.
+if _AS_PROGRAM:
     for _signum in _STOP_SIGNALS:
         if signal.getsignal(_signum) in (signal.default_int_handler, signal.SIG_DFL):
             signal.signal(_signum, _stop_quietly)
@@ -41,11 +43,13 @@ import warnings  # noqa: E402
 
 import click  # noqa: E402
 
+# Only light modules here: ``collide --help``, ``--version`` and shell completion must
+# start quickly, so numpy, numba, h5py, trimesh, matplotlib and scipy are imported
+# inside the commands that use them (``collide`` itself imports its engine lazily).
 import collide  # noqa: E402
 from collide import config  # noqa: E402
 from collide.errors import CollideError, Terminated, escape_text  # noqa: E402
 from collide.files import format_size, memory_limit, parse_size  # noqa: E402
-from collide.plot import MAX_PAIRS as PLOT_MAX_PAIRS  # noqa: E402
 
 EXIT_FINDINGS = 1
 EXIT_BAD_INPUT = 2
@@ -233,8 +237,37 @@ class _Group(click.Group):
             sys.exit(0)
 
 
+def _print_version(ctx, param, value):
+    """--version: collide's version, then what it runs on (imports the engine's libraries,
+    which nothing else before a command does) and where numba keeps the compiled kernels."""
+    if not value or ctx.resilient_parsing:
+        return
+    import platform
+    lines = [f"collide {collide.__version__}",
+             f"Python {platform.python_version()} ({platform.python_implementation()}, {sys.executable})"]
+    for name in ("numpy", "numba", "llvmlite", "trimesh", "h5py"):
+        try:
+            module = __import__(name)
+            version = module.__version__
+            if name == "h5py":
+                version += f" (HDF5 {module.version.hdf5_version})"
+        except Exception as exc:  # a broken install: say which, keep going
+            version = f"not importable ({type(exc).__name__}: {exc})"
+        lines.append(f"{name} {version}")
+    try:
+        from collide.jit_events import cache_folder
+        folder, why = cache_folder()
+        lines.append(f"numba kernel cache: {folder}" + (f" ({why})" if why else ""))
+    except Exception as exc:
+        lines.append(f"numba kernel cache: unknown ({type(exc).__name__}: {exc})")
+    click.echo("\n".join(escape_text(line) for line in lines))
+    ctx.exit()
+
+
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(collide.__version__, "--version", prog_name="collide")
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_print_version,
+              help="Show the versions of collide, Python and its libraries, and numba's kernel "
+                   "cache folder, and exit.")
 def cli():
     """collide: when, where and for how long do triangle meshes touch along a motion.
 
@@ -314,6 +347,9 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
         bar.update(done - state["done"])
         state["done"] = done
 
+    from collide.jit_events import report_to
+    if _state["verbosity"] >= 0:  # -q: only the log line, which -q silences
+        report_to(sys.stderr, live=sys.stderr.isatty())
     try:
         result = collide.scan(meshes, trajectory, mode=mode, split=split, leaf_size=leaf_size,
                               triangle_pairs=triangle_pairs, frames=frames, workers=workers,
@@ -323,6 +359,7 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
                               command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
                               allow_external_data=allow_external_data, cache=not no_cache)
     finally:
+        report_to(None)
         if bar is not None:
             bar.__exit__(None, None, None)
     _print_summary(result, output, fmt)
@@ -503,7 +540,7 @@ def diff(baseline, contacts, time_tol, ignore_filters, max_memory):
 @click.option("-o", "--output", default="timeline.png", show_default=True, type=PATH,
               help="PNG file to write.")
 @click.option("--title", default=None, help="Plot title.")
-@click.option("--max-pairs", type=click.IntRange(min=1), default=PLOT_MAX_PAIRS, show_default=True,
+@click.option("--max-pairs", type=click.IntRange(min=1), default=config.PLOT_MAX_PAIRS, show_default=True,
               help="Draw at most this many object pairs (those that touch first).")
 @memory_option
 @verbosity_options

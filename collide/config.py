@@ -103,6 +103,10 @@ MAX_WORKERS = 1024
 #: begins.
 MAX_TIME_TOL = 1.0
 
+#: Default of collide plot --max-pairs: rows (object pairs) drawn at most; beyond it
+#: the picture stops being readable.
+PLOT_MAX_PAIRS = 200
+
 #: collide plot draws times of magnitude up to this (time units); matplotlib's
 #: axis arithmetic (margins, tick formatting) overflows near float64's maximum.
 PLOT_MAX_TIME = 1e300

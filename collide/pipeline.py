@@ -6,11 +6,9 @@ import hashlib
 import logging
 import os
 import platform
-import threading
 import time
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -22,6 +20,7 @@ from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, int
 from .discrete import scan_frames
 from .filters import build_filters, describe
 from .errors import InputError, UsageError
+from .jit_events import compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .meshcache import MeshCache
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
@@ -337,20 +336,11 @@ def _fill_contact_points(contacts, where, scene, poses, interpolation):
         contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
 
 
-@contextmanager
-def _compile_note(seconds=1.5):
-    """Tell the user (stderr, once) when the body takes longer than ``seconds``: on a
-    machine's first run the numba kernels compile (about a minute), with no other sign
-    of life."""
-    note = threading.Timer(seconds, log.warning, ("compiling collide's numba kernels for this machine "
-                                                 "(first run only: about a minute; later runs load them "
-                                                 "from numba's cache)",))
-    note.daemon = True
-    note.start()
-    try:
-        yield
-    finally:
-        note.cancel()
+def _compile_note(continuous):
+    """Announce on stderr when numba really compiles (a machine's first run: about a
+    minute), never on warm runs (collide.jit_events); "n of m" counts the top-level
+    kernels that _compile_kernels prepares."""
+    return compile_notice([scan_frames, contact_point] + ([scan_intervals] if continuous else []))
 
 
 def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time_tol, dist_tol):
@@ -404,17 +394,13 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
                        glob=glob, mesh_loader=mesh_cache.load_mesh)
     filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
-    if scene.unlisted:
-        log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
-                "es" if len(scene.unlisted) > 1 else "", "their" if len(scene.unlisted) > 1 else "its",
-                ", ".join(scene.unlisted))
     index = parse_frames(frames, scene.time.shape[0])
     poses = np.ascontiguousarray(scene.poses[index])
     frame_time = scene.time[index]
     timings["load_s"] = time.perf_counter() - start
 
     continuous = mode == "continuous"
-    with _compile_note():
+    with _compile_note(continuous):
         ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
                                             build_bvh=mesh_cache.build_mesh_bvh)
         start = time.perf_counter()
@@ -424,6 +410,10 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         _compile_kernels(ps, poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
         timings["jit_s"] = time.perf_counter() - start
 
+    if scene.unlisted:  # once the inputs are known to be good: errors stay one line
+        log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
+                "es" if len(scene.unlisted) > 1 else "", "their" if len(scene.unlisted) > 1 else "its",
+                ", ".join(scene.unlisted))
     start = time.perf_counter()
     work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
     hits, pair_rows, counts = _run_discrete(ps, poses, scene.static, filters, triangle_pairs, workers, work,

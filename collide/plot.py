@@ -16,7 +16,7 @@ from .report import timeline
 FRAME_COLOUR = "#1f77b4"
 SWEPT_COLOUR = "#d62728"
 #: default limit of pairs drawn (one row each): beyond it the picture stops being readable
-MAX_PAIRS = 200
+MAX_PAIRS = config.PLOT_MAX_PAIRS
 
 
 def _pyplot():

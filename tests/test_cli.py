@@ -187,18 +187,3 @@ def test_large_rotation_between_frames_warns_once(tmp_path):
     assert "length units" in warnings[0]
     quiet = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete")
     assert "turns" not in quiet.stderr and "depart" not in quiet.stderr
-
-
-def test_slow_kernel_preparation_is_announced_once(caplog):
-    """A first run compiles the kernels for a minute: a note on stderr says so (after a
-    delay, so warm runs, which load the kernels from the cache quickly, stay quiet)."""
-    import logging
-    from collide.pipeline import _compile_note
-    with caplog.at_level(logging.WARNING, logger="collide"):
-        with _compile_note(seconds=0.05):
-            time.sleep(0.3)
-        with _compile_note(seconds=5.0):
-            pass
-        time.sleep(0.1)
-    notes = [r for r in caplog.records if "compiling" in r.getMessage()]
-    assert len(notes) == 1 and "first run" in notes[0].getMessage()

@@ -1,0 +1,206 @@
+"""A fast command line and truthful start-up messages.
+
+--help, --version's first line and shell completion must not import the engine's heavy
+libraries (checked through sys.modules, not with a stopwatch); the compile notice
+appears exactly when numba compiles (numba's compile events), never on warm runs.
+"""
+import io
+import json
+import logging
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import collide
+from collide import jit_events
+from conftest import run_cli
+
+HEAVY = ("numba", "llvmlite", "h5py", "trimesh", "matplotlib", "scipy")
+COMMANDS = ("scan", "validate", "report", "diff", "plot", "inspect", "urdf")
+
+
+def _python(code, env=None):
+    """Run ``code`` in a fresh interpreter; returns CompletedProcess (text)."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ, **(env or {})))
+
+
+def test_help_and_completion_import_no_heavy_module():
+    """Importing the CLI, --help of the program and of every command, and shell completion
+    leave numba, llvmlite, h5py, trimesh, matplotlib and scipy unimported."""
+    code = f"""
+import contextlib, io, json, os, sys
+import collide_cli.main as m
+after_import = sorted(n for n in {HEAVY!r} if n in sys.modules)
+helps = {{}}
+for args in [["--help"], ["-h"]] + [[c, "--help"] for c in {COMMANDS!r}]:
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        code = m._run(args)
+    helps[" ".join(args)] = [code, "Usage:" in out.getvalue()]
+os.environ.update(_COLLIDE_COMPLETE="bash_complete", COMP_WORDS="collide scan --mo", COMP_CWORD="2")
+out = io.TextIOWrapper(io.BytesIO(), write_through=True)  # click writes completions as bytes
+with contextlib.redirect_stdout(out):
+    m._run([])
+print(json.dumps({{"after_import": after_import, "helps": helps, "completion": out.buffer.getvalue().decode(),
+                  "heavy": sorted(n for n in {HEAVY!r} if n in sys.modules)}}))
+"""
+    proc = _python(code)
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)
+    assert found["after_import"] == [] and found["heavy"] == [], found
+    assert all(v == [0, True] for v in found["helps"].values()), found["helps"]
+    assert "plain,--mode" in found["completion"].splitlines()
+
+
+def test_import_collide_is_light_and_the_api_still_works():
+    """collide's public names load the engine on first use (PEP 562)."""
+    code = f"""
+import json, sys
+import collide
+light = sorted(n for n in {HEAVY!r} if n in sys.modules)
+names = dir(collide)
+from collide import scan, ScanResult, read_contacts, write_contacts
+from collide.ccd import vertex_face_toi
+import collide as c2
+print(json.dumps({{"light": light, "dir": names, "same": c2.scan is scan and collide.read_contacts is read_contacts,
+                  "modules": [scan.__module__, ScanResult.__module__, read_contacts.__module__,
+                              write_contacts.__module__], "ccd": collide.ccd.vertex_face_toi is vertex_face_toi,
+                  "loaded": "numba" in sys.modules}}))
+"""
+    proc = _python(code)
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)
+    assert found["light"] == []
+    assert set(collide.__all__) <= set(found["dir"])
+    assert found["same"] and found["ccd"]
+    assert found["modules"] == ["collide.pipeline", "collide.result", "collide.output", "collide.output"]
+    assert found["loaded"]
+    with pytest.raises(AttributeError, match="no attribute 'no_such_name'"):
+        collide.no_such_name  # noqa: B018
+    assert not hasattr(collide, "__no_such_dunder__")
+
+
+def test_shell_completion_of_the_installed_program():
+    """What bash's completion script runs: the program prints the matching command."""
+    program = shutil.which("collide", path=str(Path(sys.executable).parent))
+    command = [program] if program else [sys.executable, "-m", "collide_cli.main"]
+    env = dict(os.environ, _COLLIDE_COMPLETE="bash_complete", COMP_WORDS="collide sc", COMP_CWORD="1")
+    proc = subprocess.run(command, env=env, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and proc.stdout.splitlines() == ["plain,scan"], (proc.stdout, proc.stderr)
+    env = dict(os.environ, _COLLIDE_COMPLETE="zsh_complete", COMP_WORDS="collide report x --format j",
+               COMP_CWORD="4")
+    proc = subprocess.run(command, env=env, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and {"json", "jsonl"} <= set(proc.stdout.splitlines()), proc.stdout
+    proc = subprocess.run(command, env=dict(os.environ, _COLLIDE_COMPLETE="bash_source"),
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and "_COLLIDE_COMPLETE=bash_complete" in proc.stdout
+
+
+def test_version_names_libraries_and_the_kernel_cache(tmp_path):
+    proc = run_cli("--version", env={"NUMBA_CACHE_DIR": str(tmp_path)})
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0] == f"collide {collide.__version__}"
+    for name in ("Python", "numpy", "numba", "llvmlite", "trimesh", "h5py"):
+        assert any(line.startswith(name + " ") and "not importable" not in line for line in lines), proc.stdout
+    cache = [line for line in lines if line.startswith("numba kernel cache: ")]
+    assert len(cache) == 1 and f"{tmp_path}{os.sep}collide_" in cache[0] and "NUMBA_CACHE_DIR" in cache[0]
+    # without NUMBA_CACHE_DIR: beside collide's source (this checkout or site-packages, both writable here)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    proc = subprocess.run([sys.executable, "-m", "collide_cli.main", "--version"], env=env,
+                          capture_output=True, text=True, timeout=300)
+    source = subprocess.run([sys.executable, "-c", "import collide; print(collide.__file__)"], env=env,
+                            capture_output=True, text=True, timeout=60).stdout.strip()
+    assert f"numba kernel cache: {Path(source).parent / '__pycache__'} (" in proc.stdout, proc.stdout
+
+
+# --- compile notices ---------------------------------------------------------------------------
+
+def _fresh_kernels():
+    """Two new numba functions (never compiled, not cached): ``outer`` calls ``inner``."""
+    from numba import njit
+
+    @njit
+    def inner(x):
+        return x + 1
+
+    @njit
+    def outer(x):
+        return inner(x) * 2
+
+    return outer, inner
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_live_progress_names_the_kernel_and_counts_top_level_compiles(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    outer, inner = _fresh_kernels()
+    other, _ = _fresh_kernels()
+    screen = _Terminal()
+    jit_events.report_to(screen, live=True)
+    try:
+        with jit_events.compile_notice([outer, other]):
+            assert outer(1) == 4  # compiles outer, and inner inside it (not counted)
+        shown = screen.getvalue()
+        with jit_events.compile_notice([outer, other]):
+            assert outer(2) == 6  # compiled already: nothing shown
+    finally:
+        jit_events.report_to(None)
+    assert screen.getvalue() == shown
+    assert "\rcollide: compiling kernel 1 of 2 (first run only): " \
+           "test_cli_speed._fresh_kernels.<locals>.outer, 0 s" in shown
+    assert "inner" not in shown and "kernel 2 of 2" not in shown
+    assert shown.endswith("\n") and shown.count("\n") == 1
+    assert shown.rsplit("\r", 1)[1].startswith("collide: compiled numba kernels in ")
+
+
+def test_one_notice_per_compiling_block_and_none_when_warm(caplog):
+    outer, _ = _fresh_kernels()
+    other, _ = _fresh_kernels()
+    stream = io.StringIO()
+    jit_events.report_to(stream)
+    try:
+        with jit_events.compile_notice([outer, other]):
+            outer(1)
+            other(1)
+        with jit_events.compile_notice([outer, other]):
+            outer(1)
+            other(1)
+    finally:
+        jit_events.report_to(None)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("collide: compiling collide's numba kernels") and \
+        "first run only" in lines[0]
+    # library use: the collide log, once
+    outer, _ = _fresh_kernels()
+    with caplog.at_level(logging.WARNING, logger="collide"):
+        with jit_events.compile_notice([outer]):
+            outer(1)
+            outer(1.5)  # a second signature of the same kernel: still one notice
+        with jit_events.compile_notice([outer]):
+            outer(1)
+    notes = [r for r in caplog.records if "compiling" in r.getMessage()]
+    assert len(notes) == 1 and notes[0].levelno == logging.WARNING
+
+
+def test_first_scan_announces_compiling_once_and_warm_scan_says_nothing(two_boxes, tmp_path):
+    """A real first run (empty numba cache folder) compiles the discrete kernels and says so
+    once on stderr (not a terminal); the next run with that cache prints no notice."""
+    meshes, traj = two_boxes
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")}
+    cold = run_cli("scan", meshes, traj, "-o", tmp_path / "a.h5", "--mode", "discrete", env=env)
+    assert cold.returncode == 0, cold.stderr
+    notes = [line for line in cold.stderr.splitlines() if "compil" in line]
+    assert len(notes) == 1 and notes[0].startswith("collide: compiling collide's numba kernels"), cold.stderr
+    assert str(tmp_path / "numba-cache") in notes[0] and "WARNING" not in cold.stderr
+    assert any((tmp_path / "numba-cache").rglob("*.nbi"))
+    warm = run_cli("scan", meshes, traj, "-o", tmp_path / "b.h5", "--mode", "discrete", env=env)
+    assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr

@@ -22,12 +22,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
+from fcl_poses import fcl_model, fcl_poses  # noqa: E402
+
 from collide.discrete import scan_frames  # noqa: E402
 from collide.filters import build_filters  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.packed import pack_scene  # noqa: E402
 from collide.pipeline import _run_discrete  # noqa: E402
-from fcl_poses import fcl_model, fcl_poses  # noqa: E402
 
 DATA = HERE.parent / "tests" / "data"
 

@@ -27,7 +27,8 @@ swept broad phase) and takes one query of (3,) arrays.
 import math
 
 import numpy as np
-from numba import njit
+
+from .jit import njit
 
 _UNIT_ROUNDOFF = 2.0 ** -53
 

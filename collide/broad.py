@@ -27,8 +27,8 @@ Every box test is widened by ``margin`` (scene length units) so that rounding
 never drops a pair the exact narrow phase would report.
 """
 import numpy as np
-from numba import njit
 
+from .jit import njit
 from .motion import box_deviation, chord_interval
 from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
 
@@ -69,7 +69,7 @@ def sweep_and_prune(lo, hi):
     axis = int(np.argmax(spread))
     order = np.argsort(lo[:, axis], kind="mergesort")
     pairs = np.empty((max(n, 4), 2), np.int64)
-    k = 0
+    k = np.int64(0)
     for s in range(n):
         i = order[s]
         for r in range(s + 1, n):
@@ -108,7 +108,7 @@ def relative_pose(rp_a, rp_b):
     return rel
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
     """Box A (axis-aligned in A's frame) and box B (in B's frame, placed in A's
     frame by rel = [R | t]) overlap by the separating-axis test (15 axes).
@@ -157,7 +157,7 @@ def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
     """World boxes of nodes na (object A) and nb (object B) over the step overlap: each
     node's chord box widened by its deviation bound (motion.box_deviation)."""
@@ -171,14 +171,14 @@ def _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
     if rule == RULE_POSE:
         return oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, abs_r, margin)
     return _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _half_area(lo, hi):
     dx = hi[0] - lo[0]
     dy = hi[1] - lo[1]
@@ -203,7 +203,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     """
     rel = relative_pose(pose[0], pose[2])
     abs_r = np.abs(rel[:, :3]) + _ABS_R_EPS
-    k = 0
+    k = np.int64(0)
     while top > 0 and k < max_out:
         top -= 1
         na = stack[top, 0]

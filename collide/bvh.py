@@ -25,9 +25,9 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from . import config
+from .jit import njit
 
 #: split rule name -> code used by the numba builder
 SPLIT_RULES = {"sah": 0, "median": 1, "mean": 2}

@@ -108,8 +108,8 @@ u_c + v_c <= 1 + 2^-53; moving it into the triangle changes F by at most 4 u m,
 covered by the slack between 2 delta + 51 u m and 3 delta.
 """
 import numpy as np
-from numba import njit, prange
 
+from .jit import njit, prange
 from .predicates import triangles_intersect
 from .rows import COUNT_BOX_CHECKS, COUNT_CCD_PAIRS, COUNT_CCD_QUERIES, COUNT_WIDTH
 
@@ -139,29 +139,30 @@ _ROW = 7
 
 # --- F and its rounding bound -----------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _lerp(x_t0, x_t1, row, axis, t):
     """Coordinate axis of input point row at time t (length units)."""
     return x_t0[row, axis] + t * (x_t1[row, axis] - x_t0[row, axis])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _f_axis(kind, x_t0, x_t1, t, u, v, axis):
     """One coordinate of F at (t, u, v), in exactly the order the rounding bound assumes.
 
     x_t0, x_t1: float64 (4, 3); t, u, v: floats in [0, 1]; returns length units.
     """
-    p0 = _lerp(x_t0, x_t1, 0, axis, t)
-    p1 = _lerp(x_t0, x_t1, 1, axis, t)
-    p2 = _lerp(x_t0, x_t1, 2, axis, t)
-    p3 = _lerp(x_t0, x_t1, 3, axis, t)
+    # rows as np.int64, not literals: _lerp is compiled once, not once per row
+    p0 = _lerp(x_t0, x_t1, np.int64(0), axis, t)
+    p1 = _lerp(x_t0, x_t1, np.int64(1), axis, t)
+    p2 = _lerp(x_t0, x_t1, np.int64(2), axis, t)
+    p3 = _lerp(x_t0, x_t1, np.int64(3), axis, t)
     if kind == VERTEX_FACE:  # v_t, f0_t, f1_t, f2_t
         return ((p0 - p1) - u * (p2 - p1)) - v * (p3 - p1)
     # ea0_t, ea1_t, eb0_t, eb1_t
     return ((p0 - p2) + u * (p1 - p0)) - v * (p3 - p2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rounding_bound(x_t0, x_t1):
     """delta per axis (a 3-tuple, length units): bounds |computed F - exact F| (module doc)."""
     m0 = 0.0
@@ -175,7 +176,7 @@ def _rounding_bound(x_t0, x_t1):
     return (scale * m0 + _UNDERFLOW, scale * m1 + _UNDERFLOW, scale * m2 + _UNDERFLOW)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _root_excluded(kind, x_t0, x_t1, tol_out):
     """The whole domain [0, 1]^3 is excluded on some axis (decided without allocating)."""
     for axis in range(3):
@@ -218,12 +219,12 @@ def _excluded(corners, tol_out):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _edge_vector(kind, x_t0, x_t1, t, which, axis):
     """Coordinate axis at time t of edge which (0, 1): f1 - f0 and f2 - f0 for
     vertex-face, ea1 - ea0 and eb1 - eb0 for edge-edge."""
     if kind == VERTEX_FACE:
-        return _lerp(x_t0, x_t1, 2 + which, axis, t) - _lerp(x_t0, x_t1, 1, axis, t)
+        return _lerp(x_t0, x_t1, 2 + which, axis, t) - _lerp(x_t0, x_t1, np.int64(1), axis, t)
     return _lerp(x_t0, x_t1, 2 * which + 1, axis, t) - _lerp(x_t0, x_t1, 2 * which, axis, t)
 
 
@@ -239,12 +240,13 @@ def _set_directions(kind, x_t0, x_t1, t, dist_tol, delta, dirs, bounds):
     configurations best: n . F does not depend on u or v at time t, n x e0 . F not
     on the parameter of e0, n x e1 . F not on that of e1.
     """
-    a0 = _edge_vector(kind, x_t0, x_t1, t, 0, 0)
-    a1 = _edge_vector(kind, x_t0, x_t1, t, 0, 1)
-    a2 = _edge_vector(kind, x_t0, x_t1, t, 0, 2)
-    b0 = _edge_vector(kind, x_t0, x_t1, t, 1, 0)
-    b1 = _edge_vector(kind, x_t0, x_t1, t, 1, 1)
-    b2 = _edge_vector(kind, x_t0, x_t1, t, 1, 2)
+    zero, one, two = np.int64(0), np.int64(1), np.int64(2)  # not literals: one compiled _edge_vector
+    a0 = _edge_vector(kind, x_t0, x_t1, t, zero, zero)
+    a1 = _edge_vector(kind, x_t0, x_t1, t, zero, one)
+    a2 = _edge_vector(kind, x_t0, x_t1, t, zero, two)
+    b0 = _edge_vector(kind, x_t0, x_t1, t, one, zero)
+    b1 = _edge_vector(kind, x_t0, x_t1, t, one, one)
+    b2 = _edge_vector(kind, x_t0, x_t1, t, one, two)
     n0 = a1 * b2 - a2 * b1
     n1 = a2 * b0 - a0 * b2
     n2 = a0 * b1 - a1 * b0
@@ -260,7 +262,7 @@ def _set_directions(kind, x_t0, x_t1, t, dist_tol, delta, dirs, bounds):
                      + abs(dirs[k, 2]) * (dist_tol + delta[2])) * (1.0 + 2.0 ** -50) + _UNDERFLOW
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _projected_range(dirs, k, values, n_values):
     """(lo, hi) of dirs[k] . values[c] over the first n_values rows; (nan, nan) when a
     product overflows (such a test must not exclude anything)."""
@@ -317,12 +319,12 @@ def _clipped_excluded(kind, x_t0, x_t1, box, tol_out, dirs, bounds, values):
             for axis in range(3):
                 values[k, axis] = _f_axis(kind, x_t0, x_t1, box[face], u, v, axis)
             k += 1
-    return _excluded(values, tol_out) or _directions_excluded(dirs, bounds, values, 10)
+    return _excluded(values, tol_out) or _directions_excluded(dirs, bounds, values, np.int64(10))
 
 
 # --- certification of a near contact ----------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _det3(g, k, r):
     """Determinant of the 3 x 3 matrix g (4, 3 scratch rows 0-2) with column k replaced by r
     (k = -1: none)."""
@@ -391,7 +393,7 @@ def _regularised_solve(jac, f, gram, rhs, lam):
     return (_det3(gram, 0, rhs) / det, _det3(gram, 1, rhs) / det, _det3(gram, 2, rhs) / det)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _in_box(box, d, step):
     """Centre of the box along dimension d moved by step box widths, kept in the box."""
     lo = box[2 * d]
@@ -417,8 +419,8 @@ def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, work):
             # F is affine in t for fixed (u, v): its t-derivative is F(1) - F(0)
             jac[axis, 0] = 0.0 if fix_t else (_f_axis(kind, x_t0, x_t1, 1.0, u, v, axis)
                                               - _f_axis(kind, x_t0, x_t1, 0.0, u, v, axis))
-            jac[axis, 1] = sign_u * _edge_vector(kind, x_t0, x_t1, t, 0, axis)
-            jac[axis, 2] = -_edge_vector(kind, x_t0, x_t1, t, 1, axis)
+            jac[axis, 1] = sign_u * _edge_vector(kind, x_t0, x_t1, t, np.int64(0), axis)
+            jac[axis, 2] = -_edge_vector(kind, x_t0, x_t1, t, np.int64(1), axis)
             for d in range(3):
                 jac[axis, d] *= box[2 * d + 1] - box[2 * d]
         step = _regularised_solve(jac, f, gram, rhs, 1e-12)  # small: the steps must reach ~1e-14
@@ -429,7 +431,7 @@ def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, work):
     return t, u, v
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _clamp(x, lo, hi):
     return min(max(x, lo), hi) if np.isfinite(x) else lo
 
@@ -463,12 +465,12 @@ def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
     Tries, in order: the box's start time (which ends the search at once), a point
     anywhere in the box, and for a box at most time_tol long its end time.
     """
-    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, 0, tol_in, scratch)
+    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(0), tol_in, scratch)
     if t_c >= 0.0:
         return t_c
-    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, -1, tol_in, scratch)
+    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(-1), tol_in, scratch)
     if t_c < 0.0 and box[1] - box[0] <= time_tol:
-        t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, 1, tol_in, scratch)
+        t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(1), tol_in, scratch)
     return t_c
 
 
@@ -485,7 +487,7 @@ def _start_excluded(corners, tol_out):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _splittable(box, dim):
     """The box can be halved along dim: wider than _MIN_WIDTH, and its midpoint falls
     strictly inside (not so near an endpoint that it rounds onto it)."""
@@ -555,7 +557,7 @@ def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid, proj
             k += 1
         score = -np.inf
         for test in range(6):
-            mid_lo, mid_hi = _projected_range(dirs, test, mid, 4)
+            mid_lo, mid_hi = _projected_range(dirs, test, mid, np.int64(4))
             for side in range(2):
                 lo = mid_lo
                 hi = mid_hi
@@ -575,13 +577,13 @@ def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid, proj
 
 # --- a min-heap of boxes keyed by (t_lo, -depth) ----------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _before(heap, i, j):
     """Box i comes before box j: it starts earlier, or as early and is deeper."""
     return heap[i, 0] < heap[j, 0] or (heap[i, 0] == heap[j, 0] and heap[i, 6] > heap[j, 6])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _swap(heap, i, j):
     for c in range(_ROW):
         heap[i, c], heap[j, c] = heap[j, c], heap[i, c]
@@ -641,7 +643,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
     proj = np.empty((6, 8))
     box = np.empty(_ROW)
     heap[0, :] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0)
-    n = 1
+    n = np.int64(1)
     checks = 0
     t_near = np.inf  # earliest certified near-contact time so far
     while n > 0:
@@ -660,7 +662,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
         if _excluded(corners, tol_out):
             continue
         _set_directions(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]), dist_tol, delta, dirs, bounds)
-        if _directions_excluded(dirs, bounds, corners, 8):
+        if _directions_excluded(dirs, bounds, corners, np.int64(8)):
             continue
         if kind == VERTEX_FACE and box[3] + box[5] > 1.0 and _clipped_excluded(
                 kind, x_t0, x_t1, box, tol_out, dirs, bounds, clipped):
@@ -676,8 +678,8 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
             dim = _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, scratch, proj)
         if dim < 0 or n + 2 > HEAP_SIZE:
             return box[0]  # cannot split or store more: the earliest live box's start
-        n = _heap_push_half(heap, n, box, dim, False)
-        n = _heap_push_half(heap, n, box, dim, True)
+        n = _heap_push_half(heap, n, box, dim, np.bool_(False))
+        n = _heap_push_half(heap, n, box, dim, np.bool_(True))
     return np.inf
 
 
@@ -711,7 +713,7 @@ def vertex_face_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
     of the step (>= 0); dist_tol: length units (>= 0), per axis. Returns a float in
     [0, 1] or inf, with the guarantees of the module docstring. Never raises.
     """
-    return _toi(VERTEX_FACE, x_t0, x_t1, time_tol, dist_tol)
+    return _toi(np.int64(VERTEX_FACE), x_t0, x_t1, time_tol, dist_tol)
 
 
 @njit(cache=True)
@@ -721,7 +723,7 @@ def edge_edge_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
     x_t0, x_t1: float64 (4, 3) C-contiguous, rows ea0, ea1, eb0, eb1 at t = 0 and
     t = 1. Otherwise as vertex_face_toi_kernel.
     """
-    return _toi(EDGE_EDGE, x_t0, x_t1, time_tol, dist_tol)
+    return _toi(np.int64(EDGE_EDGE), x_t0, x_t1, time_tol, dist_tol)
 
 
 # --- a pair of moving triangles -------------------------------------------------------------
@@ -743,6 +745,9 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
     counts[COUNT_CCD_PAIRS] += 1
     if triangles_intersect(p0, q0):
         return 0.0
+    # np.int64: the query code is compiled once for both kinds, not once per literal kind
+    vertex_face = np.int64(VERTEX_FACE)
+    edge_edge = np.int64(EDGE_EDGE)
     best = np.inf
     for tri0, tri1, other0, other1 in ((p0, p1, q0, q1), (q0, q1, p0, p1)):
         for v in range(3):  # vertex of one triangle against the other's face
@@ -752,7 +757,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
                 for r in range(3):
                     x0[r + 1, c] = other0[r, c]
                     x1[r + 1, c] = other1[r, c]
-            best = min(best, toi_before(VERTEX_FACE, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
+            best = min(best, toi_before(vertex_face, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
             if best == 0.0:
                 return 0.0
     for i in range(3):  # edge i of p against edge j of q
@@ -766,7 +771,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
                 x1[1, c] = p1[(i + 1) % 3, c]
                 x1[2, c] = q1[j, c]
                 x1[3, c] = q1[(j + 1) % 3, c]
-            best = min(best, toi_before(EDGE_EDGE, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
+            best = min(best, toi_before(edge_edge, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
             if best == 0.0:
                 return 0.0
     return best

@@ -5,10 +5,11 @@ rounding), never to decide *whether* it happens: that is the exact predicates'
 job (predicates.py) and the certified CCD's (ccd.py).
 """
 import numpy as np
-from numba import njit
+
+from .jit import njit
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _dot(a, b):
     # written out: numba's np.dot needs SciPy's BLAS, which collide does not depend on
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]

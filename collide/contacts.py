@@ -1,8 +1,23 @@
 """Contact tables: column layouts of the output and kernel rows -> contact intervals."""
 import numpy as np
 
-from .rows import (HIT_A, HIT_B, HIT_FRAME, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP,
-                   SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_BEGIN, T_END, TIMES_WIDTH)
+from .rows import (
+    HIT_A,
+    HIT_B,
+    HIT_FRAME,
+    HIT_TRI_A,
+    HIT_TRI_B,
+    HIT_WIDTH,
+    SWEPT_A,
+    SWEPT_B,
+    SWEPT_STEP,
+    SWEPT_TRI_A,
+    SWEPT_TRI_B,
+    SWEPT_WIDTH,
+    T_BEGIN,
+    T_END,
+    TIMES_WIDTH,
+)
 
 #: contacts/ columns, in file order: name -> dtype
 CONTACT_COLUMNS = {

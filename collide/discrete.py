@@ -21,16 +21,30 @@ Output rows (int64, layouts in rows.py):
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from . import config
 from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune
 from .filters import pair_selected
+from .jit import njit
 from .motion import MOTION_WIDTH, swept_box
-from .narrow import append_row, intersecting_triangles
-from .packed import to_world
-from .rows import (COUNT_OBJECT_PAIRS, COUNT_WIDTH, HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B,
-                   HIT_WIDTH, PAIR_A, PAIR_B, PAIR_FRAME, PAIR_TRI_A, PAIR_TRI_B, PAIR_WIDTH)
+from .narrow import Placed, append_row, intersecting_triangles
+from .rows import (
+    COUNT_OBJECT_PAIRS,
+    COUNT_WIDTH,
+    HIT_A,
+    HIT_B,
+    HIT_FRAME,
+    HIT_PAIRS,
+    HIT_TRI_A,
+    HIT_TRI_B,
+    HIT_WIDTH,
+    PAIR_A,
+    PAIR_B,
+    PAIR_FRAME,
+    PAIR_TRI_A,
+    PAIR_TRI_B,
+    PAIR_WIDTH,
+)
 
 #: leaf pairs the descent hands over at a time when one intersecting triangle pair is enough
 FIRST_HIT_BATCH = 8
@@ -87,7 +101,7 @@ def start_descent(ps, rp0, rp1, motion, a, b, scratch, stack):
     scratch.motion[1] = motion[b]
     stack[0, 0] = ps.root[ps.object_mesh[a]]
     stack[0, 1] = ps.root[ps.object_mesh[b]]
-    return 1
+    return np.int64(1)  # not a literal: one compiled overlapping_leaves
 
 
 @njit(cache=True)
@@ -104,24 +118,22 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
 
 
 @njit(cache=True)
-def ensure_world(ps, rp, o, frame, static, stamp, world):
-    """Transform object o's vertices to the world buffer once per frame
-    (once per call for static objects)."""
-    if stamp[o] == frame or (static[o] and stamp[o] >= 0):
-        return
-    mesh = ps.object_mesh[o]
-    body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
-    to_world(body, rp[o], world, ps.world_start[o])
-    stamp[o] = frame
-
-
-@njit(cache=True)
 def _smallest_pair(tri, n):
     best = 0
     for k in range(1, n):
         if tri[k, 0] < tri[best, 0] or (tri[k, 0] == tri[best, 0] and tri[k, 1] < tri[best, 1]):
             best = k
     return tri[best, 0], tri[best, 1]
+
+
+@njit(cache=True)
+def _placed(ps, rp, o, f, static, stamp, world):
+    """Object o at frame f (pose rp (N, 3, 4)) as a narrow.Placed view of the lazily filled
+    world buffer; static objects share one key over all frames."""
+    mesh = ps.object_mesh[o]
+    body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
+    faces = ps.faces[ps.face_start[mesh]:ps.face_start[mesh + 1]]
+    return Placed(body, faces, rp[o], world, stamp, ps.world_start[o], -2 if static[o] else f)
 
 
 @njit(cache=True)
@@ -134,19 +146,16 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
     top = start_descent(ps, rp, rp, still, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
     batch = FIRST_HIT_BATCH if first_only else np.iinfo(np.int64).max
-    n_tri = 0
+    n_tri = np.int64(0)
     while top > 0 and not (first_only and n_tri > 0):
         stack, top, leaves, n_leaves = overlapping_leaves(
             ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose, scratch.motion, RULE_POSE,
             margin, stack, top, leaves, batch, counts)
         if n_leaves == 0:
             continue
-        ensure_world(ps, rp, a, f, static, stamp, world)
-        ensure_world(ps, rp, b, f, static, stamp, world)
         tri, n_tri = intersecting_triangles(
-            leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
-            ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
-            world, ps.world_start[a], ps.world_start[b], tri, n_tri, first_only, counts)
+            leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, _placed(ps, rp, a, f, static, stamp, world),
+            _placed(ps, rp, b, f, static, stamp, world), tri, n_tri, first_only, counts)
     return stack, leaves, tri, n_tri
 
 
@@ -161,13 +170,13 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
     """
     n_objects = poses.shape[1]
     world = np.empty((ps.world_start[n_objects], 3))
-    stamp = np.full(n_objects, -1, np.int64)
+    stamp = np.full(ps.world_start[n_objects], -1, np.int64)  # the key each world row was computed for
     margin = np.empty(n_objects)
     counts = np.zeros(COUNT_WIDTH, np.int64)
     hits = np.empty((16, HIT_WIDTH), np.int64)
-    n_hits = 0
+    n_hits = np.int64(0)
     found = np.empty((16, PAIR_WIDTH), np.int64)
-    n_found = 0
+    n_found = np.int64(0)
     stack = np.empty((64, 2), np.int64)
     leaves = np.empty((256, 2), np.int64)
     tri = np.empty((64, 2), np.int64)

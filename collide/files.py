@@ -10,6 +10,8 @@ import errno
 import os
 import re
 import stat
+import sys
+from pathlib import Path
 
 from . import config
 from .errors import InputError
@@ -217,3 +219,36 @@ def declared_size(shape):
     for extent in shape or ():
         size *= int(extent)
     return size
+
+
+# --- collide's cache folder (meshes and compiled kernels) --------------------------------------
+
+#: environment variable naming collide's cache folder
+CACHE_ENV = "COLLIDE_CACHE_DIR"
+
+
+def default_cache_dir():
+    """The platform's user cache folder for collide (Path), or None without a home folder."""
+    try:
+        home = Path.home()
+    except (RuntimeError, KeyError, OSError):
+        home = None
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or (home and home / "AppData" / "Local")
+        return Path(base) / "collide" / "Cache" if base else None
+    if sys.platform == "darwin":
+        return home / "Library" / "Caches" / "collide" if home else None
+    xdg = os.environ.get("XDG_CACHE_HOME", "")
+    if os.path.isabs(xdg):  # the XDG spec ignores relative paths
+        return Path(xdg) / "collide"
+    return home / ".cache" / "collide" if home else None
+
+
+def cache_dir():
+    """Where the cache lives: ``$COLLIDE_CACHE_DIR`` if set and not empty, else
+    default_cache_dir(). A Path (which may not exist yet), or None when there is no
+    location at all. Nothing is created or checked here."""
+    configured = os.environ.get(CACHE_ENV, "")
+    if configured:
+        return Path(configured).expanduser()
+    return default_cache_dir()

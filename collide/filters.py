@@ -19,9 +19,9 @@ import re
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from .errors import InputError, UsageError
+from .jit import njit
 
 
 class PairFilter(NamedTuple):
@@ -33,7 +33,7 @@ class PairFilter(NamedTuple):
     has_only: bool        #: True when --only patterns were given: pairs must match one
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _matches(side_a, side_b, a, b):
     for w in range(side_a.shape[1]):
         if (side_a[a, w] & side_b[b, w]) | (side_a[b, w] & side_b[a, w]):

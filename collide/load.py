@@ -18,8 +18,16 @@ import numpy as np
 
 from . import config
 from .errors import InputError, UsageError, escape_text
-from .files import (check_memory, declared_size, hdf5_object, memory_limit, not_regular, open_hdf5,
-                    open_regular, os_problem)
+from .files import (
+    check_memory,
+    declared_size,
+    hdf5_object,
+    memory_limit,
+    not_regular,
+    open_hdf5,
+    open_regular,
+    os_problem,
+)
 
 log = logging.getLogger("collide")
 

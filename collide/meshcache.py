@@ -44,7 +44,6 @@ import json
 import logging
 import os
 import re
-import sys
 import tempfile
 import threading
 import time
@@ -79,7 +78,7 @@ BVH_VERSION = 1
 CACHEABLE_SUFFIXES = frozenset({".obj", ".stl", ".ply", ".off"})
 
 #: Environment variable naming the cache folder.
-CACHE_ENV = "COLLIDE_CACHE_DIR"
+from .files import CACHE_ENV, cache_dir, default_cache_dir  # noqa: E402,F401  (location lives in files.py)
 
 #: The only file names this module writes, and so the only ones it ever deletes (the
 #: cache folder may be shared with other files): entries and their temporary files.
@@ -130,33 +129,6 @@ def _count(stats, **counts):
 
 
 # --- location ----------------------------------------------------------------------------------
-
-def default_cache_dir():
-    """The platform's user cache folder for collide (Path), or None without a home folder."""
-    try:
-        home = Path.home()
-    except (RuntimeError, KeyError, OSError):
-        home = None
-    if sys.platform == "win32":
-        base = os.environ.get("LOCALAPPDATA") or (home and home / "AppData" / "Local")
-        return Path(base) / "collide" / "Cache" if base else None
-    if sys.platform == "darwin":
-        return home / "Library" / "Caches" / "collide" if home else None
-    xdg = os.environ.get("XDG_CACHE_HOME", "")
-    if os.path.isabs(xdg):  # the XDG spec ignores relative paths
-        return Path(xdg) / "collide"
-    return home / ".cache" / "collide" if home else None
-
-
-def cache_dir():
-    """Where the cache lives: ``$COLLIDE_CACHE_DIR`` if set and not empty, else
-    default_cache_dir(). A Path (which may not exist yet), or None when there is no
-    location at all. Nothing is created or checked here."""
-    configured = os.environ.get(CACHE_ENV, "")
-    if configured:
-        return Path(configured).expanduser()
-    return default_cache_dir()
-
 
 #: folder -> "unusable" | "read-only": what was found (and told, once) per process
 _folder_state = {}

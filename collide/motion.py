@@ -67,10 +67,10 @@ The same search runs backwards in time for the last contact.
 import math
 
 import numpy as np
-from numba import njit
 
 from . import config
 from .ccd import triangle_pair_toi
+from .jit import njit
 from .predicates import triangles_intersect
 from .rows import COUNT_SPLITS
 
@@ -203,7 +203,7 @@ def motion_summary(poses, centres, radii, out):
 
 # --- positions --------------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rotate(m, x0, x1, x2, phi):
     """Rot(omega, phi) applied to (x0, x1, x2), omega = m[M_AXIS:M_AXIS + 3] (Rodrigues)."""
     w0 = m[M_AXIS]
@@ -219,7 +219,7 @@ def _rotate(m, x0, x1, x2, phi):
             x2 * c + (w0 * x1 - w1 * x0) * s + w2 * dot)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _screw_point(m, x0, x1, x2, t):
     """S(t, x) of the module docstring for the world point (x0, x1, x2) at t = 0."""
     theta = m[M_THETA]
@@ -300,7 +300,7 @@ def substeps(m_a, m_b, centre_a, radius_a, centre_b, radius_b):
 
 # --- deviation bounds -----------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _theta_rho(m, x0, x1, x2):
     """theta times the distance of the world point (x0, x1, x2) from the screw axis."""
     theta = m[M_THETA]
@@ -311,7 +311,7 @@ def _theta_rho(m, x0, x1, x2):
     return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _bound(m, theta_rho):
     """theta^2 rho / 8 from theta rho, rounded up (a relative 2^-40 covers its rounding)."""
     return 0.125 * m[M_THETA] * theta_rho * (1.0 + 2.0 ** -40)
@@ -357,7 +357,7 @@ def box_deviation(m, lo, hi, rp0):
 
 # --- swept bounds ---------------------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def world_interval(lo, hi, rp, i):
     """Range of world coordinate i over the body box [lo, hi] (3,) under rp = [R | p] (3, 4)."""
     c = rp[i, 3]
@@ -368,7 +368,7 @@ def world_interval(lo, hi, rp, i):
     return c - e, c + e
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def chord_interval(lo, hi, rp0, rp1, i):
     """World coordinate i's range of body box [lo, hi] at both poses rp0, rp1: it holds
     the box's chords (each point's straight path between the two poses)."""
@@ -419,7 +419,7 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
     return -np.inf if backwards and t == np.inf else t
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _boxes_overlap(pa, pb, qa, qb, margin):
     """The boxes of p's corners at both ends of a sub-step (pa, pb) and of q's (qa, qb),
     widened by margin, overlap: a necessary condition for the chords to come within

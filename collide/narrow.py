@@ -2,17 +2,22 @@
 
 Triangles are read from a world-space vertex buffer ``world`` float64 (W, 3)
 holding every object's vertices at the current pose; object o's vertex v is
-row ``world_start[o] + v``. Faces are mesh-local vertex indices.
+row ``world_start[o] + v``. Faces are mesh-local vertex indices. The discrete
+tests fill that buffer lazily (``Placed``): a vertex is transformed the first
+time a tested triangle needs it at a frame, so a frame costs what its tested
+triangles need, not the size of the meshes.
 """
-import numpy as np
-from numba import njit
+from typing import NamedTuple
 
+import numpy as np
+
+from .jit import njit
 from .motion import M_ETA, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
 from .rows import COUNT_TRIANGLE_PAIRS
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def gather_triangle(world, world_base, faces, face, out):
     """out (3, 3) = world coordinates of the triangle with global face row ``face``."""
     for r in range(3):
@@ -21,7 +26,37 @@ def gather_triangle(world, world_base, faces, face, out):
             out[r, c] = world[row, c]
 
 
-@njit(cache=True, inline="always")
+class Placed(NamedTuple):
+    """One object's triangles at one pose, transformed on demand (discrete tests)."""
+    body: np.ndarray    #: float64 (V, 3) the mesh's body vertices
+    faces: np.ndarray   #: int64 (F, 3) the mesh's faces (mesh-local vertex indices)
+    pose: np.ndarray    #: float64 (3, 4) [R | p]
+    world: np.ndarray   #: float64 (W, 3) the shared world buffer
+    stamp: np.ndarray   #: int64 (W,) for each world row, the key its value was computed for
+    base: int           #: the object's first row in world
+    key: int            #: this pose's key (a frame; static objects: one key for all frames)
+
+
+@njit(cache=True)
+def placed_triangle(obj, face, out):
+    """out (3, 3) = world corners of mesh-local triangle ``face`` of the Placed object,
+    computing (p + R0 x + R1 y + R2 z, as packed.to_world) the vertices not yet known
+    for this key."""
+    for r in range(3):
+        v = obj.faces[face, r]
+        row = obj.base + v
+        if obj.stamp[row] != obj.key:
+            x = obj.body[v, 0]
+            y = obj.body[v, 1]
+            z = obj.body[v, 2]
+            for c in range(3):
+                obj.world[row, c] = obj.pose[c, 3] + obj.pose[c, 0] * x + obj.pose[c, 1] * y + obj.pose[c, 2] * z
+            obj.stamp[row] = obj.key
+        for c in range(3):
+            out[r, c] = obj.world[row, c]
+
+
+@njit(cache=True)
 def _triangle_boxes_overlap(p, q):
     """Exact AABB test of two triangles (min/max of the same floats)."""
     for c in range(3):
@@ -45,16 +80,15 @@ def append_row(buf, n, row):
 
 
 @njit(cache=True)
-def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
-                           face_base_a, face_base_b, world, world_base_a, world_base_b,
-                           out, n_out, first_only, counts):
+def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, out, n_out, first_only,
+                           counts):
     """Append every intersecting triangle pair (tri_a, tri_b) of the leaf pairs
     (only the first one found when ``first_only``).
 
-    leaves int64 (>= n_leaves, 2): (leaf of A, leaf of B) node indices.
-    prim_ids hold mesh-local face indices; face_base_* turn them into rows of
-    ``faces``. counts: int64 rows.COUNT_* counters. Returns (out, n_out) with out
-    int64 (cap, 2) of mesh-local triangle indices.
+    leaves int64 (>= n_leaves, 2): (leaf of A, leaf of B) node indices; prim_ids
+    hold mesh-local face indices; obj_a, obj_b: the two objects (Placed). counts:
+    int64 rows.COUNT_* counters. Returns (out, n_out) with out int64 (cap, 2) of
+    mesh-local triangle indices.
     """
     p = np.empty((3, 3))
     q = np.empty((3, 3))
@@ -64,10 +98,10 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
         lb = leaves[k, 1]
         for ia in range(first[la], first[la] + count[la]):
             tri_a = prim_ids[ia]
-            gather_triangle(world, world_base_a, faces, face_base_a + tri_a, p)
+            placed_triangle(obj_a, tri_a, p)
             for ib in range(first[lb], first[lb] + count[lb]):
                 tri_b = prim_ids[ib]
-                gather_triangle(world, world_base_b, faces, face_base_b + tri_b, q)
+                placed_triangle(obj_b, tri_b, q)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
                 if _triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
                     row[0] = tri_a
@@ -80,7 +114,7 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, faces,
 
 # --- continuous (swept) tests -------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _swept_triangle_boxes_overlap(p0, p1, q0, q1, margin):
     """Boxes of the 6 positions of each triangle (both ends of the step) overlap, each
     widened by margin (length units).
@@ -110,7 +144,7 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
     q0 = np.empty((3, 3))
     q1 = np.empty((3, 3))
     row = np.empty(2, np.int64)
-    n = 0
+    n = np.int64(0)
     eta = motion_a[M_ETA] + motion_b[M_ETA]
     for k in range(n_leaves):
         la = leaves[k, 0]
@@ -163,7 +197,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     for k in range(n if find_first else 0):  # earliest contact; sorted: ties keep the smaller pair
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
-                               t_first, False, corners, work, counts)
+                               t_first, np.bool_(False), corners, work, counts)
         if t < t_first:
             t_first = t
             best_a = candidates[k, 0]
@@ -176,7 +210,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
             break
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
-                               t_last, True, corners, work, counts)
+                               t_last, np.bool_(True), corners, work, counts)
         t_last = max(t_last, t)
     return candidates, t_first, t_last, best_a, best_b
 

@@ -23,15 +23,21 @@ import tempfile
 import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
 from . import config
 from .contacts import CONTACT_COLUMNS, KIND_LABELS, TRIANGLE_PAIR_COLUMNS
 from .errors import InputError, escape_text
-from .files import (check_memory, declared_size, hdf5_object, memory_limit, not_regular,
-                    open_hdf5, os_problem)
+from .files import (
+    check_memory,
+    declared_size,
+    hdf5_object,
+    memory_limit,
+    not_regular,
+    open_hdf5,
+    os_problem,
+)
 from .result import ScanResult
 
 log = logging.getLogger("collide")

@@ -12,9 +12,9 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from .bvh import build_mesh_bvh
+from .jit import njit
 
 
 class PackedScene(NamedTuple):

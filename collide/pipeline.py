@@ -15,21 +15,44 @@ import numpy as np
 from . import config
 from ._version import __version__
 from .closest import contact_point
-from .contacts import (KIND_SWEPT, TRIANGLE_PAIR_COLUMNS, columns_from_rows, intervals_from_hits,
-                       intervals_from_steps, sort_columns)
+from .contacts import (
+    KIND_SWEPT,
+    TRIANGLE_PAIR_COLUMNS,
+    columns_from_rows,
+    intervals_from_hits,
+    intervals_from_steps,
+    sort_columns,
+)
 from .discrete import scan_frames
-from .filters import build_filters, describe
 from .errors import InputError, UsageError
+from .filters import build_filters, describe
 from .jit_events import compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .meshcache import MeshCache
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
 from .output import check_output_path, write_contacts
 from .packed import pack_scene, world_vertices
-from .rows import (COUNT_NAMES, COUNT_WIDTH, HIT_A, HIT_B, HIT_FRAME, HIT_PAIRS, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH,
-                   PAIR_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_END,
-                   TIMES_WIDTH)
 from .result import ScanResult
+from .rows import (
+    COUNT_NAMES,
+    COUNT_WIDTH,
+    HIT_A,
+    HIT_B,
+    HIT_FRAME,
+    HIT_PAIRS,
+    HIT_TRI_A,
+    HIT_TRI_B,
+    HIT_WIDTH,
+    PAIR_WIDTH,
+    SWEPT_A,
+    SWEPT_B,
+    SWEPT_STEP,
+    SWEPT_TRI_A,
+    SWEPT_TRI_B,
+    SWEPT_WIDTH,
+    T_END,
+    TIMES_WIDTH,
+)
 from .swept import scan_intervals
 
 log = logging.getLogger("collide")

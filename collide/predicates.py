@@ -16,7 +16,8 @@ Inputs are assumed free of overflow and underflow (coordinates of magnitude
 between about 1e-90 and 1e90, or zero).
 """
 import numpy as np
-from numba import njit
+
+from .jit import njit
 
 _EPS = 2.0 ** -53  # half an ulp of 1.0
 _SPLITTER = 134217729.0  # 2**27 + 1, splits a double into two 26-bit halves
@@ -26,7 +27,7 @@ _ORIENT3D_BOUND = (7.0 + 56.0 * _EPS) * _EPS
 
 # --- error-free transformations ---------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _two_sum(a, b):
     """a + b = x + y exactly, with x = fl(a + b)."""
     x = a + b
@@ -35,14 +36,14 @@ def _two_sum(a, b):
     return x, (a - a_virtual) + (b - b_virtual)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _split(a):
     c = _SPLITTER * a
     high = c - (c - a)
     return high, a - high
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _two_product(a, b):
     """a * b = x + y exactly, with x = fl(a * b) (Dekker)."""
     x = a * b
@@ -79,7 +80,7 @@ def _expansion_sign(terms):
     n_terms = terms.shape[0]
     a = np.zeros(n_terms + 1)
     b = np.zeros(n_terms + 1)
-    n = 1
+    n = np.int64(1)  # np.int64: no separate compile for the literal first call
     for k in range(n_terms):
         n = _grow_expansion(a, n, terms[k], b)
         a, b = b, a
@@ -151,14 +152,14 @@ def _orient3d_exact(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     c = np.array((cx, cy, cz))
     d = np.array((dx, dy, dz))
     terms = np.empty(96)
-    k = _det3_terms(a, b, c, 1.0, terms, 0)
+    k = _det3_terms(a, b, c, 1.0, terms, np.int64(0))
     k = _det3_terms(a, b, d, -1.0, terms, k)
     k = _det3_terms(a, c, d, 1.0, terms, k)
     _det3_terms(b, c, d, -1.0, terms, k)
     return _expansion_sign(terms)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def orient3d(a, b, c, d):
     """Exact sign of det[a-d; b-d; c-d] for points a, b, c, d (3,) float64.
 
@@ -244,9 +245,10 @@ def _coplanar_segment_meets_triangle(s, i, j, t):
     they meet iff they meet in all three axis projections (this also covers
     collinear and degenerate configurations, where the plane is not unique).
     """
-    return (_segment_meets_triangle_2d(s, i, j, t, 0, 1)
-            and _segment_meets_triangle_2d(s, i, j, t, 1, 2)
-            and _segment_meets_triangle_2d(s, i, j, t, 2, 0))
+    # np.int64 indices: one compiled version, not one per literal
+    return (_segment_meets_triangle_2d(s, i, j, t, np.int64(0), np.int64(1))
+            and _segment_meets_triangle_2d(s, i, j, t, np.int64(1), np.int64(2))
+            and _segment_meets_triangle_2d(s, i, j, t, np.int64(2), np.int64(0)))
 
 
 @njit(cache=True)
@@ -305,9 +307,10 @@ def triangles_intersect(p, q):
     side_p2 = orient3d(q[0], q[1], q[2], p[2])
     if side_p0 * side_p1 > 0 and side_p0 * side_p2 > 0:
         return False
-    return (segment_meets_triangle(p, 0, 1, q, side_p0, side_p1)
-            or segment_meets_triangle(p, 1, 2, q, side_p1, side_p2)
-            or segment_meets_triangle(p, 2, 0, q, side_p2, side_p0)
-            or segment_meets_triangle(q, 0, 1, p, side_q0, side_q1)
-            or segment_meets_triangle(q, 1, 2, p, side_q1, side_q2)
-            or segment_meets_triangle(q, 2, 0, p, side_q2, side_q0))
+    i0, i1, i2 = np.int64(0), np.int64(1), np.int64(2)  # one compiled version, not one per literal
+    return (segment_meets_triangle(p, i0, i1, q, side_p0, side_p1)
+            or segment_meets_triangle(p, i1, i2, q, side_p1, side_p2)
+            or segment_meets_triangle(p, i2, i0, q, side_p2, side_p0)
+            or segment_meets_triangle(q, i0, i1, p, side_q0, side_q1)
+            or segment_meets_triangle(q, i1, i2, p, side_q1, side_q2)
+            or segment_meets_triangle(q, i2, i0, p, side_q2, side_q0))

@@ -31,18 +31,48 @@ TIMES_WIDTH): t_begin, t_end, fractions of the step.
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from .analytic import sphere_overlap_window
 from .broad import RULE_SWEPT, sweep_and_prune
-from .discrete import ensure_world, object_margins, object_world_boxes, pair_leaves, pair_scratch
+from .discrete import object_margins, object_world_boxes, pair_leaves, pair_scratch
 from .filters import pair_selected
-from .motion import (M_ETA, MOTION_WIDTH, pose_at, screw_motion, sphere_deviation, step_motions,
-                     substeps)
+from .jit import njit
+from .motion import (
+    M_ETA,
+    MOTION_WIDTH,
+    pose_at,
+    screw_motion,
+    sphere_deviation,
+    step_motions,
+    substeps,
+)
 from .narrow import append_row, swept_contact_window
 from .packed import to_world
-from .rows import (COUNT_SUBSTEPS, COUNT_WIDTH, SWEPT_A, SWEPT_B, SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B,
-                   SWEPT_WIDTH, T_BEGIN, T_END, TIMES_WIDTH)
+from .rows import (
+    COUNT_SUBSTEPS,
+    COUNT_WIDTH,
+    SWEPT_A,
+    SWEPT_B,
+    SWEPT_STEP,
+    SWEPT_TRI_A,
+    SWEPT_TRI_B,
+    SWEPT_WIDTH,
+    T_BEGIN,
+    T_END,
+    TIMES_WIDTH,
+)
+
+
+@njit(cache=True)
+def ensure_world(ps, rp, o, frame, static, stamp, world):
+    """Transform object o's vertices to the world buffer once per frame
+    (once per call for static objects)."""
+    if stamp[o] == frame or (static[o] and stamp[o] >= 0):
+        return
+    mesh = ps.object_mesh[o]
+    body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
+    to_world(body, rp[o], world, ps.world_start[o])
+    stamp[o] = frame
 
 
 @njit(cache=True)
@@ -160,22 +190,23 @@ def _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, 
     pair_b = -1
     j_first = n_sub
     for j in range(n_sub):
-        buffers, f, l, tri_a, tri_b = _sub_step_window(
-            ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, True, sub, pair,
+        buffers, first, last, tri_a, tri_b = _sub_step_window(
+            ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, np.bool_(True), sub, pair,
             buffers, counts)
-        if f < np.inf:
-            t_first = _step_time(j, f, n_sub, False)
-            t_last = _step_time(j, l, n_sub, True)
+        if first < np.inf:
+            t_first = _step_time(j, first, n_sub, np.bool_(False))
+            t_last = _step_time(j, last, n_sub, np.bool_(True))
             pair_a = tri_a
             pair_b = tri_b
             j_first = j
             break
     for j in range(n_sub - 1, j_first, -1):
-        buffers, f, l, tri_a, tri_b = _sub_step_window(
-            ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, False, sub, pair,
+        buffers, _, last, _, _ = _sub_step_window(
+            ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol, np.bool_(False), sub,
+            pair,
             buffers, counts)
-        if l > -np.inf:
-            t_last = _step_time(j, l, n_sub, True)
+        if last > -np.inf:
+            t_last = _step_time(j, last, n_sub, np.bool_(True))
             break
     return buffers, t_first, t_last, pair_a, pair_b
 
@@ -203,7 +234,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_t
         ensure_world(ps, rp0, o, k, static, state.stamp0, state.world0)
         ensure_world(ps, rp1, o, k + 1, static, state.stamp1, state.world1)
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
-                                                       leaves, time_tol, dist_tol, True, buffers.tri_pairs,
+                                                       leaves, time_tol, dist_tol, np.bool_(True), buffers.tri_pairs,
                                                        counts)
     return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
 
@@ -238,7 +269,7 @@ def scan_intervals(ps, poses, static, pairs, step_start, step_stop, interpolatio
     motion = np.empty((n_objects, MOTION_WIDTH))
     ids = np.empty((16, SWEPT_WIDTH), np.int64)
     times = np.empty((16, TIMES_WIDTH))
-    n_rows = 0
+    n_rows = np.int64(0)
     id_row = np.empty(SWEPT_WIDTH, np.int64)
     time_row = np.empty(TIMES_WIDTH)
     for k in range(step_start, step_stop):

@@ -7,8 +7,12 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from collide.analytic import (sphere_overlap_window, sphere_plane_toi, sphere_sphere_overlap_window,
-                              sphere_sphere_toi)
+from collide.analytic import (
+    sphere_overlap_window,
+    sphere_plane_toi,
+    sphere_sphere_overlap_window,
+    sphere_sphere_toi,
+)
 
 getcontext().prec = 60
 T = np.linspace(0.0, 1.0, 100001)

@@ -3,10 +3,10 @@ collide.scan and collide.read_contacts, and tables for pandas."""
 import numpy as np
 import pytest
 import trimesh
+from conftest import REPO
 
 import collide
 from collide.errors import InputError, UsageError
-from conftest import REPO
 from collide.load import load_mesh, load_trajectory
 
 FIXTURE = REPO / "examples" / "fixture"

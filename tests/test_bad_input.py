@@ -3,7 +3,6 @@ no stray temporary file, and an existing output file left byte-identical."""
 import h5py
 import numpy as np
 import pytest
-
 from conftest import identity_quaternions, run_cli, write_box, write_trajectory
 
 N = 4

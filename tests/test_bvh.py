@@ -1,10 +1,10 @@
 """BVH invariants for every split rule, checked against the primitives directly."""
 import numpy as np
 import pytest
+from conftest import DATA
 
 from collide.bvh import SPLIT_RULES, build_bvh, build_mesh_bvh, bvh_stats, triangle_boxes
 from collide.load import load_mesh
-from conftest import DATA
 
 
 def check_bvh(bvh, lo, hi, leaf_size):

@@ -17,11 +17,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ccd_queries import KINDS, read_scene, scenes
 from numba import njit
 
-from ccd_queries import KINDS, read_scene, scenes
-from collide.ccd import (edge_edge_toi, edge_edge_toi_kernel, vertex_face_toi,
-                         vertex_face_toi_kernel)
+from collide.ccd import edge_edge_toi, edge_edge_toi_kernel, vertex_face_toi, vertex_face_toi_kernel
 
 TOI = {"vertex-face": vertex_face_toi, "edge-edge": edge_edge_toi}
 TOL = 1e-6

@@ -9,9 +9,9 @@ import time
 import h5py
 import numpy as np
 import pytest
+from conftest import run_cli, write_box
 
 import collide
-from conftest import run_cli, write_box
 
 
 def test_version_and_help():

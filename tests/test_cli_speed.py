@@ -14,10 +14,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import run_cli
 
 import collide
 from collide import jit_events
-from conftest import run_cli
 
 HEAVY = ("numba", "llvmlite", "h5py", "trimesh", "matplotlib", "scipy")
 COMMANDS = ("scan", "validate", "report", "diff", "plot", "inspect", "urdf")

@@ -5,11 +5,10 @@ exact for the float64 inputs too. SPEC §3: t_begin <= exact <= t_begin + tol an
 t_end >= exact >= t_end - tol, with tol = time_tol * frame interval.
 """
 import numpy as np
-import pytest
+from conftest import identity_quaternions, write_box, write_trajectory
 
 import collide
 from collide import config
-from conftest import identity_quaternions, write_box, write_trajectory
 
 
 def scene(tmp_path, boxes, mover, z_or_pos, times):

@@ -1,9 +1,9 @@
 """--scheduler: the same scan as tasks on a Dask distributed cluster gives the same result."""
 import numpy as np
 import pytest
+from conftest import REPO, run_cli
 
 import collide
-from conftest import REPO, run_cli
 
 
 def test_scan_on_a_local_dask_cluster_matches_the_local_scan():

@@ -1,6 +1,7 @@
 """The bundled examples behave as examples/make_examples.py describes them."""
-import collide
 from conftest import REPO
+
+import collide
 
 EXAMPLES = REPO / "examples"
 

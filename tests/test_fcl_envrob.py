@@ -6,14 +6,14 @@ collide must list exactly the same intersecting pairs at every frame, for every 
 """
 import numpy as np
 import pytest
+from conftest import DATA, write_trajectory
+from fcl_poses import fcl_model, fcl_poses
 from numba import njit
 
 import collide
 from collide.load import load_mesh
 from collide.packed import world_vertices
 from collide.predicates import triangles_intersect
-from conftest import DATA, write_trajectory
-from fcl_poses import fcl_model, fcl_poses
 
 N_POSES = 40
 

@@ -7,12 +7,11 @@ import json
 import h5py
 import numpy as np
 import pytest
+from conftest import identity_quaternions, run_cli, write_box, write_trajectory
 
 import collide
 from collide.errors import InputError, UsageError
 from collide.filters import build_filters, pair_selected
-from conftest import identity_quaternions, run_cli, write_box, write_trajectory
-
 
 # --- the filter itself, against fnmatch on every pair --------------------------------------------
 

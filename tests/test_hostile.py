@@ -13,6 +13,7 @@ import warnings
 import h5py
 import numpy as np
 import pytest
+from conftest import identity_quaternions, write_box, write_trajectory
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
@@ -21,7 +22,6 @@ from collide import config, output
 from collide.errors import InputError, escape_text
 from collide.files import parse_size
 from collide.load import load_scene, load_trajectory
-from conftest import identity_quaternions, write_box, write_trajectory
 
 #: examples per property test: few by default (fast); HOSTILE_EXAMPLES=2000 for a deep run
 FAST = settings(max_examples=int(os.environ.get("HOSTILE_EXAMPLES", 25)), deadline=None,

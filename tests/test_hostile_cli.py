@@ -15,9 +15,9 @@ import h5py
 import numpy as np
 import pytest
 import trimesh
+from conftest import identity_quaternions, run_cli, write_box, write_trajectory
 
 import collide
-from conftest import identity_quaternions, run_cli, write_box, write_trajectory
 
 
 def _scene(folder, n_frames=4, position=None):

@@ -12,6 +12,7 @@ import threading
 import numpy as np
 import pytest
 import trimesh
+from conftest import DATA, REPO
 
 import collide
 from collide import config
@@ -19,7 +20,6 @@ from collide import meshcache as mc
 from collide.bvh import BVH, build_mesh_bvh, triangle_boxes
 from collide.errors import InputError
 from collide.load import load_mesh
-from conftest import DATA, REPO
 
 
 @pytest.fixture

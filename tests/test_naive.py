@@ -4,7 +4,6 @@ from itertools import permutations
 
 import numpy as np
 import pytest
-
 from naive import (
     barycentric_of_origin,
     check_certificate,

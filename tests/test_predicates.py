@@ -1,9 +1,9 @@
 """Exact predicates and the triangle-triangle test against exact rational arithmetic."""
 import numpy as np
 import pytest
+from reference import orient2d_exact, orient3d_exact, triangles_intersect_exact
 
 from collide.predicates import orient2d, orient3d, triangles_intersect
-from reference import orient2d_exact, orient3d_exact, triangles_intersect_exact
 
 RNG_SEED = 20261123
 

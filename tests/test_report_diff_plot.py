@@ -8,9 +8,9 @@ import sys
 import h5py
 import numpy as np
 import pytest
+from conftest import identity_quaternions, run_cli, write_box, write_trajectory
 
 import collide
-from conftest import identity_quaternions, run_cli, write_box, write_trajectory
 
 
 @pytest.fixture(scope="module")

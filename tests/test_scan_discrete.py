@@ -1,9 +1,9 @@
 """Discrete scans of scenes whose contacts are known analytically."""
 import numpy as np
 import pytest
+from conftest import identity_quaternions, write_box, write_trajectory
 
 import collide
-from conftest import identity_quaternions, write_box, write_trajectory
 
 
 def test_two_boxes_touch_exactly_when_faces_meet(two_boxes, tmp_path):

@@ -10,6 +10,7 @@ import logging
 
 import numpy as np
 import pytest
+from conftest import run_cli, write_box, write_trajectory
 from numba import njit
 
 import collide
@@ -17,7 +18,6 @@ from collide import config, motion
 from collide.errors import InputError
 from collide.load import load_mesh
 from collide.predicates import triangles_intersect
-from conftest import run_cli, write_box, write_trajectory
 
 scipy_linalg = pytest.importorskip("scipy.linalg")
 
@@ -287,6 +287,7 @@ def test_random_turning_boxes_lose_no_sampled_contact(tmp_path, seed):
     reported interval begins where the boxes are (nearly) touching."""
     fcl = pytest.importorskip("fcl")
     from fcl_poses import fcl_model
+
     from collide.load import load_mesh
     rng = np.random.default_rng(seed)
     meshes = tmp_path / "m"

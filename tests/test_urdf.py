@@ -16,10 +16,11 @@ import trimesh
 
 pytest.importorskip("yourdfpy")
 
+from conftest import run_cli  # noqa: E402
+
 from collide.errors import InputError  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.urdf import glob_escape, urdf_to_scene  # noqa: E402
-from conftest import run_cli  # noqa: E402
 
 ROBOT_SIZE = 1.0                 # the robot spans well under a metre
 TOL = 1e-6 * ROBOT_SIZE

@@ -1,0 +1,99 @@
+"""How collide compiles its numba kernels, and where it keeps them compiled.
+
+Every kernel module takes ``njit`` (and ``prange``) from here, so that importing any of
+them first installs collide's kernel cache: one folder per collide source, named by
+the content of collide's source files, not by where they are installed. The same
+kernels compiled by a test run in the repository, by the installed command line, or in
+another virtual environment at another path are found and reused; and any change to
+any source file (a kernel, or a helper it inlines from another file) makes a new
+folder, so a stale compiled kernel is never loaded. numba itself keys entries by the
+function's signature and the machine's CPU (name and features) within the folder.
+
+Where: ``COLLIDE_KERNEL_CACHE_DIR`` if set; else ``$NUMBA_CACHE_DIR/collide-kernels``
+if numba's own variable is set; else ``kernels/`` in collide's cache folder
+(``COLLIDE_CACHE_DIR``, default the platform's user cache: ``~/.cache/collide`` on
+Linux). Inside: ``<collide version>-<source digest>-py<X.Y>-numba<version>``. A folder
+that cannot be written leaves numba's own choice (next to the sources, or its
+per-user cache).
+"""
+import hashlib
+import os
+import sys
+from pathlib import Path
+
+import numba
+from numba import njit, prange  # noqa: F401  (re-exported: kernel modules import them from here)
+from numba.core import caching
+
+from ._version import __version__
+from .files import cache_dir
+
+PACKAGE = Path(__file__).resolve().parent
+
+
+def _source_digest():
+    """sha256 (first 16 hex digits) of every .py file of the package, names and bytes."""
+    digest = hashlib.sha256()
+    for path in sorted(PACKAGE.glob("*.py")):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+SOURCE_DIGEST = _source_digest()
+
+
+def cache_root():
+    """The folder holding collide's kernel caches (see module docstring)."""
+    explicit = os.environ.get("COLLIDE_KERNEL_CACHE_DIR")
+    if explicit:
+        return Path(explicit)
+    numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+    if numba_dir:
+        return Path(numba_dir) / "collide-kernels"
+    root = cache_dir()
+    return (root if root is not None else PACKAGE / "__pycache__") / "kernels"
+
+
+def kernel_cache_dir():
+    """This collide source's kernel folder: <root>/<version>-<digest>-py<X.Y>-numba<version>."""
+    python = f"py{sys.version_info[0]}.{sys.version_info[1]}"
+    return cache_root() / f"{__version__}-{SOURCE_DIGEST}-{python}-numba{numba.__version__}"
+
+
+class ContentKeyedLocator(caching._CacheLocator):
+    """numba cache locator for collide's own functions: kernel_cache_dir(), with the
+    source digest as freshness stamp."""
+
+    def __init__(self, py_func, py_file):
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = str(kernel_cache_dir())
+
+    def get_cache_path(self):
+        return self._cache_path
+
+    def get_source_stamp(self):
+        return SOURCE_DIGEST
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        try:
+            if Path(py_file).resolve().parent != PACKAGE:
+                return None
+            locator = cls(py_func, py_file)
+            locator.ensure_cache_path()
+        except OSError:
+            return None  # not writable: numba's own locators decide
+        return locator
+
+
+def _install():
+    classes = caching.CacheImpl._locator_classes
+    if not any(cls.__name__ == ContentKeyedLocator.__name__ for cls in classes):
+        classes.insert(0, ContentKeyedLocator)
+
+
+_install()

@@ -278,6 +278,8 @@ def cli():
     collide diff BASELINE CONTACTS                  CI regression: same contacts or not
     collide plot CONTACTS -o timeline.png           picture of the contact intervals
     collide inspect MESHES                          mesh and BVH statistics
+    collide urdf ROBOT.urdf JOINTS -o traj.h5 --meshes-out DIR   robot -> meshes + trajectory
+    collide warmup                                  compile the kernels for this machine now
     """
     _configure_logging()
 
@@ -590,6 +592,25 @@ def urdf(robot, joints, output, meshes_out, geometry, ignore_adjacent, force):
     ignored = f", {len(scene.ignore)} adjacent link pairs in filters/ignore" if ignore_adjacent else ""
     click.echo(f"robot {scene.robot!r}: {len(scene.objects)} link meshes -> {meshes_out}, "
                f"{scene.frames} frames -> {output}{ignored}")
+
+
+@cli.command()
+@click.option("--mode", "modes", type=click.Choice(["continuous", "discrete"]), multiple=True,
+              help="Prepare the kernels of this scan mode only [default: both].")
+@click.option("--workers", type=click.IntRange(min=1, max=config.MAX_WORKERS), default=None,
+              help="Processes compiling at once [default: all cores].")
+@verbosity_options
+def warmup(modes, workers):
+    """Compile collide's numba kernels for this machine now (in parallel processes), so
+    that the first scan starts at once; e.g. in a CI step or a container build. A warm
+    cache makes this a fraction of a second."""
+    from collide.jit import kernel_cache_dir
+    from collide.warmup import warm_up
+
+    def progress(unit, seconds):
+        click.echo(f"{unit}: {seconds:.1f} s")
+    _, seconds = warm_up(modes or ("discrete", "continuous"), workers, progress)
+    click.echo(f"kernels ready in {seconds:.1f} s -> {kernel_cache_dir()}")
 
 
 # --- entry point ------------------------------------------------------------------------------

@@ -86,6 +86,20 @@ def _notice(event, kernels, stream, live):
     report.close(success=True)
 
 
+def announce(text):
+    """Say ``text`` where compile notices go (see report_to): the collide log, or a line
+    on the stream."""
+    stream = _settings["stream"]
+    if stream is None:
+        log.warning("%s", text)
+        return
+    try:
+        stream.write(escape_text(f"collide: {text}") + "\n")
+        stream.flush()
+    except (OSError, ValueError):
+        pass
+
+
 _LISTENER = {}
 
 
@@ -248,6 +262,8 @@ class _ClearLine(logging.Filter):
 # --- where numba keeps the compiled kernels ---------------------------------------------------
 
 _LOCATOR_WORDS = {
+    "ContentKeyedLocator": "collide's kernel cache, one folder per collide source (COLLIDE_KERNEL_CACHE_DIR, "
+                           "else NUMBA_CACHE_DIR/collide-kernels, else kernels/ in collide's cache folder)",
     "UserProvidedCacheLocator": "NUMBA_CACHE_DIR",
     "InTreeCacheLocator": "next to collide's source files",
     "UserWideCacheLocator": "numba's per-user cache: collide's own folder is not writable",

@@ -26,7 +26,8 @@ from .contacts import (
 from .discrete import scan_frames
 from .errors import InputError, UsageError
 from .filters import build_filters, describe
-from .jit_events import compile_notice
+from .jit import kernel_cache_dir
+from .jit_events import announce, compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .meshcache import MeshCache
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
@@ -366,6 +367,61 @@ def _compile_note(continuous):
     return compile_notice([scan_frames, contact_point] + ([scan_intervals] if continuous else []))
 
 
+def _start_warm_up(mode):
+    """On a machine whose kernel cache does not hold this mode's kernels yet, start
+    compiling the big ones (collide.warmup) in worker processes while the scan loads
+    its inputs; None when the cache is warm or there is one core only."""
+    from . import warmup
+    if warmup.is_warm(mode) or (os.cpu_count() or 1) < 2:
+        return None
+    return warmup.start([u for u in warmup.MODE_UNITS[mode] if u != "setup"])
+
+
+def _finish_warm_up(compiling):
+    """Wait for the warm-up workers (announcing it: this is a cold first run)."""
+    if compiling is None:
+        return
+    announce(f"compiling collide's numba kernels for this machine in {len(compiling.processes)} more processes "
+             f"(first run only: about a minute; later runs load them from {kernel_cache_dir()})")
+    _, seconds = compiling.finish()
+    announce(f"compiled the kernels in {seconds:.0f} s")
+
+
+def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, interpolation, warn_angle, ignore, only,
+             glob, max_memory, allow_external_data, cache, compiling):
+    """Load and check the inputs, build the BVHs, make the kernels ready (compiling, or
+    waiting for the warm-up workers ``compiling``, on a first run). Returns (scene,
+    packed scene, poses (T, N, 3, 4), frame index, filters, dist_tol, timings)."""
+    timings = {}
+    start = time.perf_counter()
+    mesh_cache = MeshCache(enabled=cache)
+    scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
+                       glob=glob, mesh_loader=mesh_cache.load_mesh)
+    filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
+    index = parse_frames(frames, scene.time.shape[0])
+    poses = np.ascontiguousarray(scene.poses[index])
+    timings["load_s"] = time.perf_counter() - start
+    continuous = mode == "continuous"
+    ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
+                                        build_bvh=mesh_cache.build_mesh_bvh)
+    start = time.perf_counter()
+    dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
+    if continuous:
+        check_motion(scene, ps, poses, index, interpolation, warn_angle)
+    _finish_warm_up(compiling)
+    with _compile_note(continuous):
+        _compile_kernels(ps, poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
+    _mark_warm(mode)
+    timings["jit_s"] = time.perf_counter() - start
+    timings["cache"] = {"enabled": bool(cache), **mesh_cache.stats.as_dict(), "digests": mesh_cache.digests}
+    return scene, ps, poses, index, filters, dist_tol, timings
+
+
+def _mark_warm(mode):
+    from . import warmup
+    warmup.mark_warm(mode)
+
+
 def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time_tol, dist_tol):
     """Call every kernel of a scan once on no work, so that compiling (first run) or
     loading them from numba's cache happens here, before the progress bar."""
@@ -411,28 +467,17 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     inputs = input_files(meshes, trajectory, glob) if output is not None else []
     if output is not None:
         check_output_path(output, inputs)  # fail before the work, not after
-    timings = {}
-    start = time.perf_counter()
-    mesh_cache = MeshCache(enabled=cache)
-    scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
-                       glob=glob, mesh_loader=mesh_cache.load_mesh)
-    filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
-    index = parse_frames(frames, scene.time.shape[0])
-    poses = np.ascontiguousarray(scene.poses[index])
+    compiling = _start_warm_up(mode) if scheduler is None else None
+    try:
+        scene, ps, poses, index, filters, dist_tol, timings = _prepare(
+            meshes, trajectory, mode, split, leaf_size, frames, time_tol, interpolation, warn_angle, ignore, only,
+            glob, max_memory, allow_external_data, cache, compiling)
+    finally:
+        if compiling is not None:
+            compiling.stop()
     frame_time = scene.time[index]
-    timings["load_s"] = time.perf_counter() - start
-
     continuous = mode == "continuous"
-    with _compile_note(continuous):
-        ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
-                                            build_bvh=mesh_cache.build_mesh_bvh)
-        start = time.perf_counter()
-        dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
-        if continuous:
-            check_motion(scene, ps, poses, index, interpolation, warn_angle)
-        _compile_kernels(ps, poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
-        timings["jit_s"] = time.perf_counter() - start
-
+    cache_stats = timings.pop("cache")
     if scene.unlisted:  # once the inputs are known to be good: errors stay one line
         log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
                 "es" if len(scene.unlisted) > 1 else "", "their" if len(scene.unlisted) > 1 else "its",
@@ -477,12 +522,12 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                "triangle_pairs": int(hits[:, HIT_PAIRS].sum()) if triangle_pairs else None,
                "static_objects": list(scene.unlisted), "filters": describe(filters),
                "work": {name: int(n) for name, n in zip(COUNT_NAMES, counts)},
-               "cache": {"enabled": bool(cache), **mesh_cache.stats.as_dict()}},
+               "cache": {k: v for k, v in cache_stats.items() if k != "digests"}},
     )
     result.provenance = {
         "command": command or _api_call(meshes, trajectory, mode),
         "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "inputs": _inputs(scene, trajectory, mesh_cache.digests),
+        "inputs": _inputs(scene, trajectory, cache_stats["digests"]),
         "parameters": parameters,
         "versions": result.versions,
     }

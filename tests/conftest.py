@@ -15,6 +15,27 @@ REPO = TESTS.parent
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 
+def _shared_kernel_cache():
+    """The tests (and the command lines they start) use the user's kernel cache, so that
+    kernels compile once for every test run and installed copy, not in the private mesh
+    cache folder set below."""
+    if not os.environ.get("COLLIDE_KERNEL_CACHE_DIR"):
+        from collide.jit import cache_root
+        os.environ["COLLIDE_KERNEL_CACHE_DIR"] = str(cache_root())
+
+
+_shared_kernel_cache()
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _warm_kernels():
+    """On a cold kernel cache, compile every kernel first, in parallel processes (what
+    `collide warmup` does), rather than one test at a time."""
+    from collide import warmup
+    if not (warmup.is_warm("discrete") and warmup.is_warm("continuous")):
+        warmup.warm_up(("discrete", "continuous"))
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _private_mesh_cache(tmp_path_factory):
     """The tests' mesh cache lives in a temporary folder, never in the user's cache

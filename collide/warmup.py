@@ -1,0 +1,202 @@
+"""Compile collide's kernels before they are needed, several at a time (``collide warmup``).
+
+A machine's first scan compiles the numba kernels it needs, one after another, on one
+core; every later run loads them from the kernel cache (collide.jit). The kernels fall
+into a few independent units: the frame scan (``discrete``), the step scan
+(``continuous``), and the set-up kernels (BVH builder, motion summary, contact point).
+``start`` compiles units in separate Python processes (fresh interpreters, never
+fork), each calling its kernels on a tiny scene in memory with no work to do: that
+compiles exactly the specialisations a real scan uses and stores them in the shared
+cache. A scan that finds the cache cold starts the workers at once, validates its
+inputs meanwhile (so a bad input still fails at once, with its one-line error, and
+stops the workers), compiles the set-up kernels itself, then waits for the workers and
+loads their kernels.
+
+A marker file per mode and CPU in the kernel folder records that a scan of that mode
+completed with warm kernels; without it, the next scan of that mode warms up first.
+
+    python -m collide.warmup UNIT [UNIT ...]     # the worker: compile these units
+"""
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+#: units of work and the kernels they compile
+UNITS = {
+    "continuous": ("scan_intervals",),
+    "discrete": ("scan_frames",),
+    "setup": ("bvh", "motion", "contact_point"),
+}
+#: which units a scan of each mode needs
+MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("continuous", "discrete", "setup")}
+
+
+# --- is the cache warm? ------------------------------------------------------------------------
+
+def cpu_key():
+    """A short key of this machine's CPU as numba's cache sees it (name and features)."""
+    import llvmlite.binding as llvm
+    from numba.core import config
+    name = config.CPU_NAME or llvm.get_host_cpu_name()
+    features = config.CPU_FEATURES if config.CPU_NAME else llvm.get_host_cpu_features().flatten()
+    return hashlib.sha256(f"{name}|{features}".encode()).hexdigest()[:12]
+
+
+def _marker(mode):
+    from .jit import kernel_cache_dir
+    return kernel_cache_dir() / f"warm-{mode}-{cpu_key()}.json"
+
+
+def is_warm(mode):
+    """A scan of this mode has completed on this CPU with the current kernel folder."""
+    try:
+        return _marker(mode).is_file()
+    except OSError:
+        return False
+
+
+def mark_warm(mode):
+    """Record that the kernels of ``mode`` are in the cache (best effort)."""
+    try:
+        _marker(mode).write_text(json.dumps({"mode": mode, "cpu": cpu_key()}))
+    except OSError:
+        pass
+
+
+# --- worker processes --------------------------------------------------------------------------
+
+class Workers:
+    """Worker processes compiling units; ``finish`` waits for them, ``stop`` ends them."""
+
+    def __init__(self, units):
+        package_parent = str(Path(__file__).resolve().parent.parent)
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH")) if p)
+        self.start = time.perf_counter()
+        self.units = list(units)
+        self.processes = [subprocess.Popen([sys.executable, "-m", "collide.warmup", unit], env=env,
+                                           stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                           stderr=subprocess.DEVNULL, text=True)
+                          for unit in self.units]
+
+    def finish(self, progress=None):
+        """Wait for every worker; progress(unit, seconds) as each ends. Returns {unit:
+        seconds} (None for a worker that failed: the scan then compiles what it lacks
+        itself) and the wall time."""
+        seconds = {}
+        try:
+            for unit, process in zip(self.units, self.processes):
+                out, _ = process.communicate()
+                seconds[unit] = float(out.split()[-1]) if process.returncode == 0 and out.split() else None
+                if progress is not None:
+                    progress(unit, seconds[unit])
+        except BaseException:
+            self.stop()
+            raise
+        return seconds, time.perf_counter() - self.start
+
+    def stop(self):
+        """End the workers at once (the scan failed or was interrupted)."""
+        for process in self.processes:
+            if process.poll() is None:
+                process.kill()
+            process.wait()
+
+
+def start(units):
+    """Workers compiling ``units`` (names of UNITS), one process each."""
+    return Workers(units)
+
+
+def warm_up(modes=("discrete", "continuous"), workers=None, progress=None):
+    """Compile (or load) the kernels that scans of ``modes`` need: every unit in a process
+    of its own, up to ``workers`` at a time (default: all at once). Returns ({unit:
+    seconds}, wall seconds)."""
+    units = [u for u in UNITS if any(u in MODE_UNITS[mode] for mode in modes)]
+    batch = max(1, workers or len(units))
+    seconds = {}
+    started = time.perf_counter()
+    for first in range(0, len(units), batch):
+        done, _ = start(units[first:first + batch]).finish(progress)
+        seconds.update(done)
+    if all(s is not None for s in seconds.values()):
+        for mode in modes:
+            mark_warm(mode)
+    return seconds, time.perf_counter() - started
+
+
+# --- what a worker does ------------------------------------------------------------------------
+
+def compile_unit(unit):
+    """Compile (or load) the kernels of one unit on a tiny scene; returns seconds."""
+    import numpy as np
+
+    from .bvh import BVH, build_mesh_bvh
+    from .filters import build_filters
+    from .load import Mesh
+    from .packed import pack_scene
+    started = time.perf_counter()
+    vertices = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    faces = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]], dtype=np.int64)
+    meshes = [Mesh("a", None, vertices, faces), Mesh("b", None, vertices + 0.5, faces)]
+
+    def one_leaf(v, f, split, leaf_size):  # a valid BVH without compiling the builder
+        corners = v[f]
+        return BVH(corners.min(axis=(0, 1))[None], corners.max(axis=(0, 1))[None], np.zeros(1, np.int64),
+                   np.array([f.shape[0]], np.int64), np.arange(f.shape[0], dtype=np.int64))
+    ps, _ = pack_scene(meshes, np.array([0, 1]), build_bvh=build_mesh_bvh if "bvh" in UNITS[unit] else one_leaf)
+    poses = np.zeros((2, 2, 3, 4))
+    poses[..., :3] = np.eye(3)
+    static = np.zeros(2, dtype=bool)
+    pairs = build_filters(["a", "b"]).kernel_filter()
+    for kernel in UNITS[unit]:
+        _KERNELS[kernel](ps, poses, static, pairs)
+    return time.perf_counter() - started
+
+
+def _scan_frames(ps, poses, static, pairs):
+    from .discrete import scan_frames
+    scan_frames(ps, poses, static, pairs, 0, 0, False, True)
+
+
+def _scan_intervals(ps, poses, static, pairs):
+    from .swept import scan_intervals
+    scan_intervals(ps, poses, static, pairs, 0, 0, 1, 1e-6, 1e-9)
+
+
+def _bvh(ps, poses, static, pairs):
+    pass  # compile_unit's pack_scene has built the BVHs with the real builder
+
+
+def _motion(ps, poses, static, pairs):
+    import numpy as np
+
+    from .motion import motion_summary, points_at
+    from .packed import world_vertices
+    motion_summary(poses, np.ascontiguousarray(ps.centre), np.ascontiguousarray(ps.sphere_radius),
+                   np.empty((1, 2, 2)))
+    corners = world_vertices(np.eye(3), poses[0, 0])
+    points_at(np.zeros(12), corners.copy(), corners, 0.5, corners)
+
+
+def _contact_point(ps, poses, static, pairs):
+    import numpy as np
+
+    from .closest import contact_point
+    triangle = np.ascontiguousarray(np.eye(3))
+    contact_point(triangle, triangle)
+
+
+_KERNELS = {"scan_frames": _scan_frames, "scan_intervals": _scan_intervals, "bvh": _bvh, "motion": _motion,
+            "contact_point": _contact_point}
+
+
+if __name__ == "__main__":
+    total = 0.0
+    for name in sys.argv[1:]:
+        total += compile_unit(name)
+    print(f"{total:.3f}")

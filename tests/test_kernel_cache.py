@@ -1,0 +1,57 @@
+"""The kernel cache is keyed by content: copies of collide at other paths reuse compiled
+kernels, and a changed source file never loads a stale one."""
+import json
+import shutil
+import subprocess
+import sys
+
+from conftest import REPO
+
+# compiles one small kernel (the pair filter) and reports how many functions numba compiled
+PROBE = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import numba.core.event as event
+compiled = []
+class Count(event.Listener):
+    def on_start(self, e): compiled.append(e.data["dispatcher"].py_func.__qualname__)
+    def on_end(self, e): pass
+event.register("numba:compile", Count())
+import collide
+from collide.filters import build_filters, pair_selected
+from collide.jit import kernel_cache_dir
+assert collide.__file__.startswith(sys.argv[1]), collide.__file__
+pair_selected(build_filters(["a", "b", "c"], ["a:b"]).kernel_filter(), 0, 1)
+print(json.dumps({"compiled": compiled, "folder": str(kernel_cache_dir())}))
+"""
+
+
+def probe(package_parent, kernel_dir):
+    env = {"COLLIDE_KERNEL_CACHE_DIR": str(kernel_dir), "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run([sys.executable, "-c", PROBE, str(package_parent)], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def copy_package(target):
+    shutil.copytree(REPO / "collide", target / "collide", ignore=shutil.ignore_patterns("__pycache__"))
+    return target
+
+
+def test_a_copy_at_another_path_reuses_the_compiled_kernels(tmp_path):
+    kernels = tmp_path / "kernels"
+    first = probe(copy_package(tmp_path / "one"), kernels)
+    assert "pair_selected" in first["compiled"]
+    second = probe(copy_package(tmp_path / "elsewhere" / "two"), kernels)
+    assert second["compiled"] == [] and second["folder"] == first["folder"]
+
+
+def test_a_changed_source_file_compiles_afresh(tmp_path):
+    kernels = tmp_path / "kernels"
+    first = probe(copy_package(tmp_path / "one"), kernels)
+    changed = copy_package(tmp_path / "two")
+    with open(changed / "collide" / "predicates.py", "a") as f:   # not even the kernel's own file
+        f.write("\n# an edit\n")
+    second = probe(changed, kernels)
+    assert second["folder"] != first["folder"] and "pair_selected" in second["compiled"]

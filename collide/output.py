@@ -21,7 +21,7 @@ import socket
 import stat
 import tempfile
 import threading
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -200,6 +200,16 @@ def _signals_deferred():
             signal.signal(signum, handler)
 
 
+@contextmanager
+def signals_held():
+    """Hold stop signals back during a short write (see _signals_deferred), then deliver
+    the first that came."""
+    with _signals_deferred() as came:
+        yield
+    if came:
+        _redeliver(came[0])
+
+
 def _redeliver(signum):
     """Deliver a signal that was held back to its own handler (KeyboardInterrupt,
     collide's Terminated, or the default action); if that handler returns, the
@@ -227,14 +237,15 @@ def write_error(path, exc):
 
 
 @contextmanager
-def atomic_path(path, inputs=()):
+def atomic_path(path, inputs=(), defer_signals=True):
     """Yield a temporary path next to ``path``; rename it to ``path`` on success.
 
     ``path`` is checked first (check_output_path, with ``inputs`` that must not be
     overwritten). On any exception, and on Ctrl-C, SIGTERM or SIGHUP during the
-    body (delivered once the body is done), the temporary file is removed and
-    ``path`` is left as it was. An OSError with an errno from the body or the
-    rename (full disk, file size limit) becomes an InputError.
+    body (delivered once the body is done, unless not ``defer_signals``: a long body
+    that holds signals back only while it writes, with signals_held), the temporary
+    file is removed and ``path`` is left as it was. An OSError with an errno from the
+    body or the rename (full disk, file size limit) becomes an InputError.
     """
     target = check_output_path(path, inputs)
     folder = target.parent if str(target.parent) else Path(".")
@@ -245,7 +256,7 @@ def atomic_path(path, inputs=()):
         raise InputError(path, f"cannot write in its folder ({os_problem(exc)})", "a writable folder") from None
     os.close(fd)
     try:
-        with _signals_deferred() as came:
+        with _signals_deferred() if defer_signals else nullcontext([]) as came:
             try:
                 yield Path(tmp)
             except OSError as exc:
@@ -344,18 +355,22 @@ class _FileSink(io.RawIOBase):
 
 
 @contextmanager
-def atomic_hdf5(path, inputs=()):
+def atomic_hdf5(path, inputs=(), defer_signals=True):
     """Yield a new h5py.File that becomes ``path`` once the block completes (see
-    atomic_path). A full disk or file size limit during the write is an InputError;
-    the data is synced to disk before the rename."""
+    atomic_path, also for ``defer_signals``). A full disk or file size limit during the
+    write is an InputError; the data is synced to disk before the rename."""
     import h5py
-    with atomic_path(path, inputs) as tmp:
+    with atomic_path(path, inputs, defer_signals) as tmp:
         fd = os.open(tmp, os.O_RDWR | getattr(os, "O_CLOEXEC", 0))
         sink = _FileSink(fd)
         try:
             try:
-                with h5py.File(sink, "w") as h5:
+                h5 = h5py.File(sink, "w")
+                try:
                     yield h5
+                finally:
+                    with nullcontext() if defer_signals else signals_held():
+                        h5.close()
             except Exception:
                 if sink.error is not None:  # the cause, whatever HDF5 made of it
                     raise sink.error from None
@@ -389,9 +404,40 @@ def _write_columns(h5, group_name, columns, layout):
 def write_contacts(path, result, inputs=()):
     """Write a ScanResult (see pipeline.py) to ``path`` atomically; ``inputs`` are
     paths the output must not replace (the scan's trajectory and mesh files)."""
+    with atomic_hdf5(path, inputs) as h5:
+        write_result(h5, result)
+
+
+class TrianglePairWriter:
+    """Appends triangle-pair columns (TRIANGLE_PAIR_COLUMNS) to the output file's
+    triangle_pairs/ group as a scan produces them (chunked, resizable datasets), so
+    they never need to be in memory all at once."""
+
+    def __init__(self, h5):
+        group = h5.create_group("triangle_pairs")
+        self.datasets = {name: group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
+                                                    chunks=(1 << 16,), compression="gzip")
+                         for name, dtype in TRIANGLE_PAIR_COLUMNS.items()}
+        self.rows = 0
+
+    def __call__(self, columns):
+        n = len(columns["frame"])
+        if n == 0:
+            return
+        with signals_held():
+            for name, ds in self.datasets.items():
+                ds.resize((self.rows + n,))
+                ds[self.rows:] = np.asarray(columns[name], dtype=TRIANGLE_PAIR_COLUMNS[name])
+        self.rows += n
+
+
+def write_result(h5, result):
+    """Write a ScanResult into an open output file (h5py.File) in the contacts format
+    (triangle pairs only when the result holds them: a TrianglePairWriter may have
+    written them already)."""
     import h5py
     strings = h5py.string_dtype()
-    with atomic_hdf5(path, inputs) as h5:
+    with signals_held():
         h5.attrs["collide_format"] = FORMAT_NAME
         h5.attrs["format_version"] = FORMAT_VERSION
         h5.attrs["collide_version"] = result.versions["collide"]

@@ -8,7 +8,8 @@ import os
 import platform
 import time
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from .jit_events import announce, compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .meshcache import MeshCache
 from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
-from .output import check_output_path, write_contacts
+from .output import TrianglePairWriter, atomic_hdf5, check_output_path, write_result
 from .packed import pack_scene, world_vertices
 from .result import ScanResult
 from .rows import (
@@ -40,7 +41,6 @@ from .rows import (
     HIT_A,
     HIT_B,
     HIT_FRAME,
-    HIT_PAIRS,
     HIT_TRI_A,
     HIT_TRI_B,
     HIT_WIDTH,
@@ -153,30 +153,41 @@ class _Progress:
 
 
 def _run_chunks(kernel, shared, extra, n_items, workers, progress, scheduler=None):
-    """kernel(*shared, start, stop, *extra) for chunks of range(n_items), in parallel.
+    """kernel(*shared, start, stop, *extra) for chunks of range(n_items), in parallel: the
+    list of results, in chunk order (see _chunk_results)."""
+    return [result for _, result in _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler)]
 
-    Locally in ``workers`` threads (the kernels release the GIL, so threads use
-    every core); with ``scheduler`` (an address) as tasks on a Dask distributed
-    cluster, with the shared arrays sent to the workers once. Results come back
-    in chunk order, so the output does not depend on scheduling.
+
+def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=None):
+    """Yield ((start, stop), kernel(*shared, start, stop, *extra)) for chunks of
+    range(n_items), in chunk order, computed in parallel.
+
+    Locally in ``workers`` threads (the kernels release the GIL, so threads use every
+    core), at most 2 x workers chunks ahead of the one yielded, so a caller that
+    streams results out (--triangle-pairs to a file) holds a bounded number of them.
+    With ``scheduler`` (an address) as tasks on a Dask distributed cluster, with the
+    shared arrays sent to the workers once (all results are gathered first). The order
+    does not depend on scheduling.
     """
     if scheduler is not None:
-        return _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
+        yield from _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
+        return
     chunks = _chunks(n_items, workers)
-    results = [None] * len(chunks)
+    ahead = 2 * workers
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(kernel, *shared, s, e, *extra): i for i, (s, e) in enumerate(chunks)}
+        pending = {}
         try:
-            for future in as_completed(futures):
-                i = futures[future]
-                results[i] = future.result()
+            for i in range(len(chunks)):
+                for j in range(i, min(i + ahead, len(chunks))):
+                    if j not in pending:
+                        pending[j] = pool.submit(kernel, *shared, chunks[j][0], chunks[j][1], *extra)
+                result = pending.pop(i).result()
                 if progress is not None:
                     progress.add(chunks[i][1] - chunks[i][0])
-        except BaseException:
-            for future in futures:
+                yield chunks[i], result
+        finally:
+            for future in pending.values():
                 future.cancel()
-            raise
-    return results
 
 
 def _call_kernel(kernel, shared, start, stop, extra):
@@ -184,7 +195,8 @@ def _call_kernel(kernel, shared, start, stop, extra):
 
 
 def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
-    """The Dask version of _run_chunks (collide must be installed on the workers)."""
+    """The Dask version of _chunk_results, as a list (collide must be installed on the
+    workers)."""
     try:
         from distributed import Client
         from distributed import as_completed as dask_as_completed
@@ -208,32 +220,42 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
             results[i] = future.result()
             if progress is not None:
                 progress.add(chunks[i][1] - chunks[i][0])
-    return results
+    return list(zip(chunks, results))
 
 
-def _run_discrete(ps, poses, static, filters, collect_pairs, workers, progress, scheduler=None):
-    """Frame hits (H, HIT_WIDTH), triangle pairs (P, PAIR_WIDTH) (rows.py) and work counts
-    of all frames, for the object pairs filters.Filters selects.
+def _run_discrete(ps, poses, static, filters, pair_sink, workers, progress, scheduler=None):
+    """Frame hits (H, HIT_WIDTH) (rows.py) and work counts of all frames, for the object
+    pairs filters.Filters selects; with a pair_sink (TrianglePairs), every intersecting
+    triangle pair too, handed over chunk by chunk in output order.
 
-    Without collect_pairs each object pair's search stops at its first
-    intersecting triangle pair (see smallest_pairs_at_frames for the reported pair).
-    Pairs of static objects are tested once and repeated for every frame.
+    Without pair_sink each object pair's search stops at its first intersecting
+    triangle pair (see smallest_pairs_at_frames for the reported pair). Pairs of static
+    objects are tested once and repeated for every frame.
     """
     n_frames = poses.shape[0]
-    first_only = not collect_pairs
-    results = _run_chunks(scan_frames, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
-                          (collect_pairs, first_only), n_frames, workers, progress, scheduler)
+    collect = pair_sink is not None
+    static_hits = static_pairs = None
+    counts = []
     if static.sum() >= 2:
-        s_hits, s_pairs, s_counts = scan_frames(ps, poses, static, filters.kernel_filter(only_within=static), 0,
-                                                1, collect_pairs, first_only)
-        results.append((_repeat_over_frames(s_hits, n_frames), _repeat_over_frames(s_pairs, n_frames), s_counts))
-    return (np.concatenate([r[0] for r in results]).reshape(-1, HIT_WIDTH),
-            np.concatenate([r[1] for r in results]).reshape(-1, PAIR_WIDTH), _total_counts(results))
+        static_hits, static_pairs, static_counts = scan_frames(
+            ps, poses, static, filters.kernel_filter(only_within=static), 0, 1, collect, not collect)
+        counts.append(static_counts)
+    hits = []
+    for (start, stop), (chunk_hits, chunk_pairs, chunk_counts) in _chunk_results(
+            scan_frames, (ps, poses, static, filters.kernel_filter(extra_ignore=static)), (collect, not collect),
+            n_frames, workers, progress, scheduler):
+        hits.append(chunk_hits)
+        counts.append(chunk_counts)
+        if collect:
+            pair_sink.add(chunk_pairs, np.arange(start, stop), static_pairs)
+    if static_hits is not None:
+        hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
+    return np.concatenate(hits).reshape(-1, HIT_WIDTH), _total_counts(counts)
 
 
-def _total_counts(results):
-    """Sum of the kernels' work counts (the last item of each result)."""
-    return np.sum([r[-1] for r in results], axis=0) if results else np.zeros(COUNT_WIDTH, np.int64)
+def _total_counts(counts):
+    """Sum of the kernels' work counts (int64 (COUNT_WIDTH,) arrays)."""
+    return np.sum(counts, axis=0) if counts else np.zeros(COUNT_WIDTH, np.int64)
 
 
 def smallest_pairs_at_frames(contacts, where, ps, poses, static, filters):
@@ -259,7 +281,7 @@ def _run_swept(ps, poses, static, filters, interpolation, time_tol, dist_tol, wo
                           (INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
                           scheduler)
     return (np.concatenate([r[0] for r in results]).reshape(-1, SWEPT_WIDTH),
-            np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts(results))
+            np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[2] for r in results]))
 
 
 def _static_steps(hits, static, n_steps):
@@ -275,12 +297,44 @@ def _static_steps(hits, static, n_steps):
     return ids, fractions
 
 
-def _repeat_over_frames(rows, n_frames):
+def _repeat_over_frames(rows, frames):
     """Rows of frame 0 (hits or triangle pairs: column HIT_FRAME = PAIR_FRAME is the frame)
-    repeated for every frame."""
-    out = np.repeat(rows[None, :, :], n_frames, axis=0)
-    out[:, :, HIT_FRAME] = np.arange(n_frames)[:, None]
+    repeated for each of ``frames`` (int64 (F,))."""
+    out = np.repeat(rows[None, :, :], frames.shape[0], axis=0)
+    out[:, :, HIT_FRAME] = frames[:, None]
     return out.reshape(-1, rows.shape[1])
+
+
+class TrianglePairs:
+    """Where a scan's intersecting triangle pairs go, chunk by chunk of frames, in output
+    order (sorted by frame, object_a, object_b, tri_a, tri_b): to a writer (streamed
+    into the output file: memory does not grow with the number of rows) or, without
+    one, into memory (``columns()``)."""
+
+    def __init__(self, writer=None):
+        self.writer = writer
+        self.kept = []
+        self.count = 0
+
+    def add(self, rows, frames, static_rows=None):
+        """rows int64 (P, PAIR_WIDTH) of the consecutive frames (int64 (F,)); static_rows:
+        the static pairs' rows of frame 0, to repeat for those frames."""
+        if static_rows is not None and static_rows.shape[0]:
+            rows = np.concatenate([rows, _repeat_over_frames(static_rows, frames)])
+        columns = sort_columns(columns_from_rows(rows, TRIANGLE_PAIR_COLUMNS), list(TRIANGLE_PAIR_COLUMNS))
+        self.count += rows.shape[0]
+        if self.writer is not None:
+            self.writer(columns)
+        else:
+            self.kept.append(columns)
+
+    def columns(self):
+        """All rows kept in memory, as output columns (None when they went to a writer)."""
+        if self.writer is not None:
+            return None
+        if not self.kept:
+            return columns_from_rows(np.zeros((0, PAIR_WIDTH), np.int64), TRIANGLE_PAIR_COLUMNS)
+        return {name: np.concatenate([c[name] for c in self.kept]) for name in TRIANGLE_PAIR_COLUMNS}
 
 
 def scene_size(ps, poses):
@@ -482,28 +536,40 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
                 "es" if len(scene.unlisted) > 1 else "", "their" if len(scene.unlisted) > 1 else "its",
                 ", ".join(scene.unlisted))
-    start = time.perf_counter()
-    work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
-    hits, pair_rows, counts = _run_discrete(ps, poses, scene.static, filters, triangle_pairs, workers, work,
-                                            scheduler)
-    if continuous:
-        ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, interpolation, time_tol,
-                                                  dist_tol, workers, work, scheduler)
-        counts = counts + swept_counts
-        static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
-        contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
-                                               np.concatenate([fractions, static_fractions]), hits, frame_time)
-    else:
-        contacts, where = intervals_from_hits(hits, frame_time)
-    if not triangle_pairs:
-        smallest_pairs_at_frames(contacts, where, ps, poses, scene.static, filters)
-    _fill_contact_points(contacts, where, scene, poses, interpolation)
-    pairs = None
-    if triangle_pairs:
-        pairs = sort_columns(columns_from_rows(pair_rows, TRIANGLE_PAIR_COLUMNS),
-                             list(TRIANGLE_PAIR_COLUMNS))
-    timings["scan_s"] = time.perf_counter() - start
+    with ExitStack() as stack:
+        # with an output file, triangle pairs stream into it as frames finish
+        h5 = stack.enter_context(atomic_hdf5(output, inputs, defer_signals=False)) if output is not None else None
+        pair_sink = None
+        if triangle_pairs:
+            pair_sink = TrianglePairs(TrianglePairWriter(h5) if h5 is not None else None)
+        start = time.perf_counter()
+        work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
+        hits, counts = _run_discrete(ps, poses, scene.static, filters, pair_sink, workers, work, scheduler)
+        if continuous:
+            ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, interpolation, time_tol,
+                                                      dist_tol, workers, work, scheduler)
+            counts = counts + swept_counts
+            static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
+            contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
+                                                   np.concatenate([fractions, static_fractions]), hits, frame_time)
+        else:
+            contacts, where = intervals_from_hits(hits, frame_time)
+        if not triangle_pairs:
+            smallest_pairs_at_frames(contacts, where, ps, poses, scene.static, filters)
+        _fill_contact_points(contacts, where, scene, poses, interpolation)
+        timings["scan_s"] = time.perf_counter() - start
+        result = _result(scene, meshes, trajectory, mode, split, leaf_size, triangle_pairs, frames, workers,
+                         scheduler, time_tol, interpolation, glob, filters, command, index, frame_time, contacts,
+                         pair_sink, hits, counts, timings, cache_stats)
+        if h5 is not None:
+            write_result(h5, result)
+    return result
 
+
+def _result(scene, meshes, trajectory, mode, split, leaf_size, triangle_pairs, frames, workers, scheduler,
+            time_tol, interpolation, glob, filters, command, index, frame_time, contacts, pair_sink, hits, counts,
+            timings, cache_stats):
+    """The ScanResult of a scan: its findings, statistics and provenance."""
     parameters = {"mode": mode, "split": split, "leaf_size": leaf_size or config.DEFAULT_LEAF_SIZE,
                   "triangle_pairs": bool(triangle_pairs), "frames": None if frames is None else str(frames),
                   "workers": workers, "scheduler": scheduler, "time_tol": time_tol,
@@ -512,14 +578,15 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         object_names=list(scene.names),
         object_meshes=[mesh_label(scene.meshes[m]) for m in scene.object_mesh],
         object_triangles=np.array([scene.meshes[m].faces.shape[0] for m in scene.object_mesh]),
-        frame_time=frame_time, frame_index=index, contacts=contacts, triangle_pairs=pairs,
+        frame_time=frame_time, frame_index=index, contacts=contacts,
+        triangle_pairs=pair_sink.columns() if pair_sink is not None else None,
         mode=mode, interpolation=interpolation,
         provenance={}, versions=versions(),
         stats={**timings, "frames": int(index.size), "objects": len(scene.names),
                "contacts": int(contacts["object_a"].size),
                "swept_only_contacts": int((contacts["kind"] == KIND_SWEPT).sum()),
                "frames_in_contact": int(np.unique(hits[:, HIT_FRAME]).size),
-               "triangle_pairs": int(hits[:, HIT_PAIRS].sum()) if triangle_pairs else None,
+               "triangle_pairs": pair_sink.count if pair_sink is not None else None,
                "static_objects": list(scene.unlisted), "filters": describe(filters),
                "work": {name: int(n) for name, n in zip(COUNT_NAMES, counts)},
                "cache": {k: v for k, v in cache_stats.items() if k != "digests"}},
@@ -531,6 +598,4 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         "parameters": parameters,
         "versions": result.versions,
     }
-    if output is not None:
-        write_contacts(output, result, inputs)
     return result

@@ -57,9 +57,14 @@ def test_scan_and_read_contacts_return_the_same_type_with_dataframes(tmp_path):
         names = [tuple(sorted(p)) for p in zip(frame["a"], frame["b"])]
         assert names == [tuple(sorted((result.object_names[a], result.object_names[b])))
                          for a, b in zip(result.contacts["object_a"], result.contacts["object_b"])]
+    # with an output file, triangle pairs stream into it (the result does not hold them)
+    assert result.triangle_pairs is None
     pairs = back.to_dataframe("triangle-pairs")
-    assert isinstance(pairs, pd.DataFrame) and len(pairs) == result.triangle_pairs["frame"].size
+    assert isinstance(pairs, pd.DataFrame) and len(pairs) == result.stats["triangle_pairs"] > 0
     np.testing.assert_array_equal(pairs["time"].to_numpy(), back.frame_time[pairs["frame"].to_numpy()])
+    in_memory = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", triangle_pairs=True)
+    for name, column in in_memory.triangle_pairs.items():
+        np.testing.assert_array_equal(back.triangle_pairs[name], column, err_msg=name)
 
 
 def test_bad_arrays_are_bad_input_naming_what():

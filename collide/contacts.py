@@ -1,4 +1,9 @@
-"""Contact tables: column layouts of the output and kernel rows -> contact intervals."""
+"""Contact tables: column layouts of the output and kernel rows -> contact intervals.
+
+Rows are grouped by sorting (numpy lexsort), never by scanning per object pair.
+"""
+from typing import NamedTuple
+
 import numpy as np
 
 from .rows import (
@@ -53,32 +58,29 @@ def sort_columns(columns, keys):
     return {name: col[order] for name, col in columns.items()}
 
 
-def frame_runs(frames):
-    """Maximal runs of consecutive frame indices: sorted int64 (n,) -> (starts, ends) row indices."""
-    frames = np.asarray(frames)
-    if frames.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    breaks = np.flatnonzero(np.diff(frames) != 1)
-    starts = np.concatenate([[0], breaks + 1])
-    ends = np.concatenate([breaks, [frames.size - 1]])
-    return starts, ends
+class Where(NamedTuple):
+    """Each contact's first moment (for its point) and where its triangle pair came from."""
+    step: np.ndarray      #: int64 (E,) frame (discrete) or step (continuous) index
+    u: np.ndarray         #: float64 (E,) fraction of the step (0: the frame itself)
+    from_hit: np.ndarray  #: bool (E,) (tri_a, tri_b) came from a frame hit
 
 
-def _to_columns(rows):
-    """Contact columns from tuples ordered as CONTACT_COLUMNS, sorted (SPEC §4)."""
-    columns = {name: np.array([r[k] for r in rows], dtype=dtype)
-               for k, (name, dtype) in enumerate(CONTACT_COLUMNS.items())}
-    return columns
+def _contact_columns(a, b, t_begin, t_end, kind, tri_a, tri_b, times):
+    """Contact columns (CONTACT_COLUMNS; points NaN for the caller to fill) of intervals
+    given as arrays, already sorted by (a, b, t_begin)."""
+    n = a.shape[0]
+    values = {"object_a": a, "object_b": b, "t_begin": t_begin, "t_end": t_end,
+              "frame_begin": frame_of_time(times, t_begin), "frame_end": frame_of_time(times, t_end),
+              "kind": kind, "tri_a": tri_a, "tri_b": tri_b,
+              "point_x": np.full(n, np.nan), "point_y": np.full(n, np.nan), "point_z": np.full(n, np.nan)}
+    return {name: np.asarray(values[name]).astype(dtype) for name, dtype in CONTACT_COLUMNS.items()}
 
 
-def _group_by_pair(rows, a_col, b_col):
-    """Yield (a, b, rows of that pair) for a 2-D array sorted or not."""
-    if rows.shape[0] == 0:
-        return
-    keys = rows[:, a_col].astype(np.int64) * (int(rows[:, b_col].max()) + 1) + rows[:, b_col].astype(np.int64)
-    for key in np.unique(keys):
-        group = rows[keys == key]
-        yield int(group[0, a_col]), int(group[0, b_col]), group
+def _new_pair(a, b):
+    """bool (n,): row k starts another object pair than row k - 1 (rows sorted by pair)."""
+    starts = np.ones(a.shape[0], bool)
+    starts[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
+    return starts
 
 
 def intervals_from_hits(hits, times):
@@ -86,40 +88,33 @@ def intervals_from_hits(hits, times):
 
     hits int64 (H, HIT_WIDTH): frame hits (rows.py).
     times float64 (T,) analysed frame times.
-    Returns (columns, where): contact columns sorted per SPEC §4 with one row
-    per maximal run of consecutive frames of one object pair (points NaN, for
-    the caller to fill), and where = (step int64 (E,), u float64 (E,),
-    from_hit bool (E,)): the contact's first moment as frame/step index and
-    fraction of the step, and whether (tri_a, tri_b) came from a frame hit.
+    Returns (columns, where): contact columns sorted by (object_a, object_b, t_begin),
+    one row per maximal run of consecutive frames of one object pair (points NaN, for
+    the caller to fill), and a Where: the contact's first frame (u = 0), its
+    (tri_a, tri_b) from a frame hit.
     """
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
-    rows = []
-    for a, b, group in _group_by_pair(hits, HIT_A, HIT_B):
-        group = group[np.argsort(group[:, HIT_FRAME], kind="stable")]
-        starts, ends = frame_runs(group[:, HIT_FRAME])
-        for s, e in zip(starts, ends):
-            f0, f1 = group[s, HIT_FRAME], group[e, HIT_FRAME]
-            rows.append((a, b, times[f0], times[f1], f0, f1, KIND_FRAME, group[s, HIT_TRI_A],
-                         group[s, HIT_TRI_B], np.nan, np.nan, np.nan, f0, 0.0, True))
-    return _finish(rows)
+    hits = hits[np.lexsort((hits[:, HIT_FRAME], hits[:, HIT_B], hits[:, HIT_A]))]
+    a, b, frame = hits[:, HIT_A], hits[:, HIT_B], hits[:, HIT_FRAME]
+    starts = _new_pair(a, b)
+    starts[1:] |= frame[1:] != frame[:-1] + 1
+    first = np.flatnonzero(starts)
+    last = np.append(first[1:] - 1, hits.shape[0] - 1) if first.size else first
+    columns = _contact_columns(a[first], b[first], times[frame[first]], times[frame[last]],
+                               np.full(first.size, KIND_FRAME), hits[first, HIT_TRI_A], hits[first, HIT_TRI_B], times)
+    return columns, Where(frame[first], np.zeros(first.size), np.ones(first.size, bool))
 
 
-def _finish(rows):
-    """Sort rows (contact columns + step, u, from_hit) and split off the where-arrays."""
-    rows.sort(key=lambda r: (r[0], r[1], r[2]))
-    columns = _to_columns([r[:12] for r in rows])
-    where = (np.array([r[12] for r in rows], dtype=np.int64), np.array([r[13] for r in rows], dtype=np.float64),
-             np.array([r[14] for r in rows], dtype=bool))
-    return columns, where
-
-
-def step_time(times, step, u):
-    """Absolute time of fraction u of step (frame step -> step+1); exact at u = 0 and 1."""
-    if u <= 0.0:
-        return times[step]
-    if u >= 1.0:
-        return times[step + 1]
-    return times[step] + u * (times[step + 1] - times[step])
+def step_time(times, step, u, direction):
+    """Absolute times (float64 arrays) of fractions u of steps (frame step -> step + 1):
+    exact at u = 0 and 1, otherwise times[step] + u (times[step + 1] - times[step]) moved
+    one float toward ``direction`` (-inf for a begin, inf for an end), the conservative
+    side of its rounding."""
+    step = np.asarray(step, dtype=np.int64)
+    u = np.asarray(u, dtype=np.float64)
+    after = times[np.minimum(step + 1, times.shape[0] - 1)]
+    between = np.nextafter(times[step] + u * (after - times[step]), direction)
+    return np.where(u <= 0.0, times[step], np.where(u >= 1.0, after, between))
 
 
 def intervals_from_steps(ids, fractions, hits, times):
@@ -129,48 +124,52 @@ def intervals_from_steps(ids, fractions, hits, times):
     (rows.py; fractions u in [0, 1] of the step from frame k to k+1), from
     swept.scan_intervals. hits int64 (H, HIT_WIDTH): exact contacts at frame poses,
     as for intervals_from_hits.
-    Everything is merged per object pair into maximal intervals; kind is 0 when
-    a frame pose inside the interval shows the contact, 1 when only the swept
-    test saw it. Returns (columns, where) as intervals_from_hits.
+    Everything is merged per object pair into maximal intervals: sorted by begin, an
+    item starts a new interval when it begins after every earlier item of its pair has
+    ended. kind is 0 when a frame pose inside the interval shows the contact, 1 when
+    only the swept test saw it. The triangle pair and first moment are those of the
+    interval's first item (frame hits before swept items at the same time, then the
+    smallest pair). Returns (columns, where) as intervals_from_hits.
     """
     ids = np.asarray(ids, dtype=np.int64).reshape(-1, SWEPT_WIDTH)
     fractions = np.asarray(fractions, dtype=np.float64).reshape(-1, TIMES_WIDTH)
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
-    # items: a, b, begin, end, tri_a, tri_b, is_frame_contact, step, u
-    items = []
-    columns = ids[:, [SWEPT_STEP, SWEPT_A, SWEPT_B, SWEPT_TRI_A, SWEPT_TRI_B]].tolist()
-    spans = fractions[:, [T_BEGIN, T_END]].tolist()
-    for (k, a, b, ta, tb), (u0, u1) in zip(columns, spans):
-        begin = step_time(times, k, u0)
-        end = step_time(times, k, u1)
-        if 0.0 < u0 < 1.0:  # keep the conservative side under rounding
-            begin = np.nextafter(begin, -np.inf)
-        if 0.0 < u1 < 1.0:
-            end = np.nextafter(end, np.inf)
-        items.append((a, b, begin, end, ta, tb, False, k, u0))
-    for f, a, b, ta, tb in hits[:, [HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B]].tolist():
-        items.append((a, b, times[f], times[f], ta, tb, True, f, 0.0))
-    items.sort(key=lambda it: (it[0], it[1], it[2], not it[6], it[4], it[5]))
-    rows = []
-    current = None
-    for it in items:
-        if current is not None and it[:2] == current[0][:2] and it[2] <= current[1]:
-            current[1] = max(current[1], it[3])
-            current[2] = current[2] or it[6]
-            continue
-        if current is not None:
-            rows.append(_interval_row(current, times))
-        current = [it, it[3], it[6]]
-    if current is not None:
-        rows.append(_interval_row(current, times))
-    return _finish(rows)
+    hit_time = times[hits[:, HIT_FRAME]]
+    a = np.concatenate([ids[:, SWEPT_A], hits[:, HIT_A]])
+    b = np.concatenate([ids[:, SWEPT_B], hits[:, HIT_B]])
+    t0 = np.concatenate([step_time(times, ids[:, SWEPT_STEP], fractions[:, T_BEGIN], -np.inf), hit_time])
+    t1 = np.concatenate([step_time(times, ids[:, SWEPT_STEP], fractions[:, T_END], np.inf), hit_time])
+    tri_a = np.concatenate([ids[:, SWEPT_TRI_A], hits[:, HIT_TRI_A]])
+    tri_b = np.concatenate([ids[:, SWEPT_TRI_B], hits[:, HIT_TRI_B]])
+    is_frame = np.concatenate([np.zeros(ids.shape[0], bool), np.ones(hits.shape[0], bool)])
+    step = np.concatenate([ids[:, SWEPT_STEP], hits[:, HIT_FRAME]])
+    u = np.concatenate([fractions[:, T_BEGIN], np.zeros(hits.shape[0])])
+    order = np.lexsort((tri_b, tri_a, ~is_frame, t0, b, a))
+    a, b, t0, t1, tri_a, tri_b, is_frame, step, u = (x[order] for x in (a, b, t0, t1, tri_a, tri_b, is_frame,
+                                                                        step, u))
+    new_pair = _new_pair(a, b)
+    reach = _running_max_by_group(t1, np.flatnonzero(new_pair))   # latest end so far within each pair
+    starts = new_pair.copy()
+    starts[1:] |= t0[1:] > reach[:-1]
+    first = np.flatnonzero(starts)
+    interval = np.cumsum(starts) - 1
+    t_end = np.full(first.size, -np.inf)
+    np.maximum.at(t_end, interval, t1)
+    seen_at_frame = np.zeros(first.size, bool)
+    np.logical_or.at(seen_at_frame, interval, is_frame)
+    kind = np.where(seen_at_frame, KIND_FRAME, KIND_SWEPT)
+    columns = _contact_columns(a[first], b[first], t0[first], t_end, kind, tri_a[first], tri_b[first], times)
+    return columns, Where(step[first], u[first], is_frame[first])
 
 
-def _interval_row(current, times):
-    first, end, seen_at_frame = current
-    a, b, begin, _, ta, tb, _, step, u = first
-    return (a, b, begin, end, frame_of_time(times, begin), frame_of_time(times, end),
-            KIND_FRAME if seen_at_frame else KIND_SWEPT, ta, tb, np.nan, np.nan, np.nan, step, u, first[6])
+def _running_max_by_group(values, group_starts):
+    """Running maximum of float64 values (n,), restarting at each index of group_starts
+    (sorted, starting with 0): one numpy call per group (per object pair in contact)."""
+    out = np.empty_like(values)
+    bounds = np.append(group_starts, values.shape[0])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        out[lo:hi] = np.maximum.accumulate(values[lo:hi])
+    return out
 
 
 def frame_of_time(times, t):

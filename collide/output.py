@@ -365,7 +365,8 @@ def atomic_hdf5(path, inputs=(), defer_signals=True):
         sink = _FileSink(fd)
         try:
             try:
-                h5 = h5py.File(sink, "w")
+                with nullcontext() if defer_signals else signals_held():  # HDF5 must not be interrupted
+                    h5 = h5py.File(sink, "w")
                 try:
                     yield h5
                 finally:
@@ -414,10 +415,11 @@ class TrianglePairWriter:
     they never need to be in memory all at once."""
 
     def __init__(self, h5):
-        group = h5.create_group("triangle_pairs")
-        self.datasets = {name: group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
-                                                    chunks=(1 << 16,), compression="gzip")
-                         for name, dtype in TRIANGLE_PAIR_COLUMNS.items()}
+        with signals_held():  # a stop signal inside HDF5 can leave it in pieces
+            group = h5.create_group("triangle_pairs")
+            self.datasets = {name: group.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dtype,
+                                                        chunks=(1 << 16,), compression="gzip")
+                             for name, dtype in TRIANGLE_PAIR_COLUMNS.items()}
         self.rows = 0
 
     def __call__(self, columns):

@@ -26,7 +26,7 @@ from .contacts import (
 )
 from .discrete import scan_frames
 from .errors import InputError, UsageError
-from .filters import build_filters, describe
+from .filters import build_filters, describe, exact_pairs
 from .jit import kernel_cache_dir
 from .jit_events import announce, compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
@@ -258,16 +258,18 @@ def _total_counts(counts):
     return np.sum(counts, axis=0) if counts else np.zeros(COUNT_WIDTH, np.int64)
 
 
-def smallest_pairs_at_frames(contacts, where, ps, poses, static, filters):
+def smallest_pairs_at_frames(contacts, where, ps, poses, static):
     """Set each contact's (tri_a, tri_b) that came from a frame hit to the smallest
     intersecting pair at that frame (hits found without collecting pairs hold the
-    first pair found, which depends on the BVH)."""
+    first pair found, which depends on the BVH): one scan per such frame, of just the
+    object pairs that need it."""
     steps, _, from_hit = where
-    pair_filter = filters.kernel_filter()
     for f in np.unique(steps[from_hit]):
-        hits, _, _ = scan_frames(ps, poses, static, pair_filter, f, f + 1, False, False)
+        rows = np.flatnonzero(from_hit & (steps == f))
+        wanted = np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1)
+        hits, _, _ = scan_frames(ps, poses, static, exact_pairs(poses.shape[1], wanted), f, f + 1, False, False)
         smallest = {(a, b): (ta, tb) for a, b, ta, tb in hits[:, [HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B]].tolist()}
-        for k in np.flatnonzero(from_hit & (steps == f)):
+        for k in rows:
             contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
@@ -472,8 +474,12 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
 
 
 def _mark_warm(mode):
+    """Record that the kernels of this mode, and of every mode whose kernels it includes
+    (a continuous scan prepares the discrete ones too), are ready."""
     from . import warmup
-    warmup.mark_warm(mode)
+    for other, units in warmup.MODE_UNITS.items():
+        if set(units) <= set(warmup.MODE_UNITS[mode]):
+            warmup.mark_warm(other)
 
 
 def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time_tol, dist_tol):
@@ -555,7 +561,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         else:
             contacts, where = intervals_from_hits(hits, frame_time)
         if not triangle_pairs:
-            smallest_pairs_at_frames(contacts, where, ps, poses, scene.static, filters)
+            smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
         _fill_contact_points(contacts, where, scene, poses, interpolation)
         timings["scan_s"] = time.perf_counter() - start
         result = _result(scene, meshes, trajectory, mode, split, leaf_size, triangle_pairs, frames, workers,

@@ -27,10 +27,12 @@ def _shared_kernel_cache():
 _shared_kernel_cache()
 
 
-@pytest.fixture(autouse=True, scope="session")
-def _warm_kernels():
+def pytest_configure(config):
     """On a cold kernel cache, compile every kernel first, in parallel processes (what
-    `collide warmup` does), rather than one test at a time."""
+    `collide warmup` does), once, before any test (and before pytest-xdist's workers
+    start), rather than in each test process as tests need them."""
+    if hasattr(config, "workerinput"):
+        return  # a pytest-xdist worker: the controller has done it
     from collide import warmup
     if not (warmup.is_warm("discrete") and warmup.is_warm("continuous")):
         warmup.warm_up(("discrete", "continuous"))

@@ -18,6 +18,7 @@ def test_scan_on_a_local_dask_cluster_matches_the_local_scan():
         assert np.array_equal(local.contacts[name], remote.contacts[name], equal_nan=True), name
 
 
+@pytest.mark.slow  # Dask keeps retrying for its 10 s connect timeout
 def test_unreachable_scheduler_is_a_clear_error(two_boxes, tmp_path):
     pytest.importorskip("distributed")
     meshes, traj = two_boxes

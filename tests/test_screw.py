@@ -280,7 +280,7 @@ def sampled_contacts(mesh_a, mesh_b, poses_a, poses_b, samples):
     return np.array(hits)
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", [0] + [pytest.param(s, marks=pytest.mark.slow) for s in range(1, 8)])
 def test_random_turning_boxes_lose_no_sampled_contact(tmp_path, seed):
     """Two boxes turning up to 70 degrees per frame about random axes near each other:
     every sampled contact time of the screw motion lies in a reported interval, and each

@@ -14,13 +14,15 @@ Measured, ``--repeat`` times interleaved, medians (ratios taken per repeat):
   summary, and the whole process) against a python-fcl loop (``fcl.collide`` with
   num_max_contacts=1, OBBRSS models built once, transforms from the same trajectory);
   issue 9 acceptance: collide scan stage <= python-fcl on one thread. collide's work
-  counts per frame (BVH node pairs visited, leaf pairs, triangle pairs tested) are shown;
+  counts per frame (BVH node pairs visited, leaf pairs, triangle pairs tested) are shown,
+  and an in-process breakdown of its kernel time (kernel_breakdown);
 - every intersecting triangle pair per frame: ``--triangle-pairs`` against fcl with
   num_max_contacts large (all contacts), and whether the pair sets agree.
 """
 import argparse
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import h5py
@@ -30,7 +32,10 @@ from benchlib import (fcl_frame_loop, fcl_objects, frame_pairs, machine_load, me
                       print_table, ratio, read_poses, run_scan)
 
 import collide
-from collide.load import load_mesh
+from collide.discrete import scan_frames
+from collide.filters import build_filters
+from collide.load import load_mesh, load_scene
+from collide.packed import pack_scene, to_world
 
 
 def make_mesh(shape, subdivisions):
@@ -85,6 +90,34 @@ def triangle_pair_sets(contacts):
     return out
 
 
+def kernel_breakdown(meshes, trajectory, repeat):
+    """Where the discrete yes/no scan's time goes, measured in this process (one thread,
+    no thread pool): the kernel (collide.discrete.scan_frames over all frames) and, within
+    it, the transform of the moving object's whole vertex array to world coordinates
+    that it does once per frame (collide.packed.to_world). Medians over ``repeat``; seconds."""
+    scene = load_scene(meshes, trajectory)
+    ps, _ = pack_scene(scene.meshes, scene.object_mesh)
+    pairs = build_filters(scene.names).kernel_filter(extra_ignore=scene.static)
+    n_frames = scene.poses.shape[0]
+    moving = [o for o in range(len(scene.names)) if not scene.static[o]]
+    scan_frames(ps, scene.poses, scene.static, pairs, 0, 2, False, True)   # compile or load
+    kernel, transform = [], []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        scan_frames(ps, scene.poses, scene.static, pairs, 0, n_frames, False, True)
+        kernel.append(time.perf_counter() - start)
+        start = time.perf_counter()
+        for o in moving:
+            m = ps.object_mesh[o]
+            body = ps.vertices[ps.vert_start[m]:ps.vert_start[m + 1]]
+            world = np.empty_like(body)
+            for f in range(n_frames):
+                to_world(body, scene.poses[f, o], world, 0)
+        transform.append(time.perf_counter() - start)
+    vertices = sum(ps.vert_start[ps.object_mesh[o] + 1] - ps.vert_start[ps.object_mesh[o]] for o in moving)
+    return median(kernel), median(transform), int(vertices)
+
+
 def run_yes_no(meshes, trajectory, folder, workers_list, repeat, objects, names, poses):
     """Interleaved repeats of collide (each worker count) and the fcl yes/no loop."""
     collide_runs = {w: [] for w in workers_list}
@@ -135,7 +168,8 @@ def main(argv=None):
         folder = Path(args.out or tmp)
         print(f"machine: {machine_load()}")
         meshes, trajectory, triangles = write_scene(folder, args.shape, args.subdivisions, args.frames)
-        print(f"two {args.shape}s of {triangles} triangles overlapping by half their size, {args.frames} frames")
+        print(f"two copies of a {args.shape} of {triangles} triangles, overlapping by half their size, "
+              f"{args.frames} frames")
         names, poses = read_poses(trajectory)
         objects, fcl_build = fcl_objects({p.stem: load_mesh(p) for p in sorted(meshes.glob("*.ply"))})
 
@@ -160,6 +194,10 @@ def main(argv=None):
               f"node pairs, {work['leaf_pairs'] / n:.1f} leaf pairs, {work['triangle_pairs'] / n:.1f} triangle pairs")
         print(f"frames in contact: collide {len(ours)}, python-fcl {len(theirs)} of {n}; "
               f"same frames: {'yes' if ours == theirs else 'NO'}")
+        kernel, transform, vertices = kernel_breakdown(meshes, trajectory, args.repeat)
+        print(f"in process, one thread: kernel (scan_frames) {1e6 * kernel / n:.1f} us/frame, of which the world "
+              f"transform of the moving mesh ({vertices} vertices, every frame) {1e6 * transform / n:.1f} us/frame; "
+              f"python-fcl {1e6 * median(fcl_times) / n:.1f} us/frame")
         scan_1 = [r.summary["seconds"]["scan"] for r in collide_runs[1]]
         yes_no_ratio = median([ratio(s, f) for s, f in zip(scan_1, fcl_times)])
 

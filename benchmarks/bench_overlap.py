@@ -28,8 +28,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from benchlib import (fcl_frame_loop, fcl_objects, frame_pairs, machine_load, median, parse_workers,
-                      print_table, ratio, read_poses, run_scan)
+from benchlib import (fcl_frame_loop, fcl_objects, frame_pairs, machine_load, median, parse_workers, print_table,
+                      ratio, read_poses, run_scan, thread_headroom)
 
 import collide
 from collide.discrete import scan_frames
@@ -166,7 +166,8 @@ def main(argv=None):
     workers_list = sorted(set(parse_workers(args.workers)) | {1})
     with tempfile.TemporaryDirectory(prefix="bench-overlap-") as tmp:
         folder = Path(args.out or tmp)
-        print(f"machine: {machine_load()}")
+        print(f"machine: {machine_load()}; two-thread headroom now {thread_headroom():.2f}x "
+              "(a trivially parallel loop on 2 threads vs 1)")
         meshes, trajectory, triangles = write_scene(folder, args.shape, args.subdivisions, args.frames)
         print(f"two copies of a {args.shape} of {triangles} triangles, overlapping by half their size, "
               f"{args.frames} frames")

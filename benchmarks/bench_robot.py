@@ -41,7 +41,7 @@ from typing import NamedTuple
 import h5py
 
 from benchlib import (contact_pairs, fcl_frame_loop, fcl_objects, frame_pairs, machine_load, median,
-                      parse_workers, print_table, ratio, read_poses, run_cli, run_scan)
+                      parse_workers, print_table, ratio, read_poses, run_cli, run_scan, thread_headroom)
 from robot_cell import STATIC_PAIRS_THAT_TOUCH, write_cell
 
 from collide.load import load_mesh
@@ -244,7 +244,8 @@ def main(argv=None):
     workers_list = sorted(set(parse_workers(args.workers)) | {1})
     with tempfile.TemporaryDirectory(prefix="bench-robot-") as tmp:
         folder = Path(args.out or tmp)
-        print(f"machine: {machine_load()}")
+        print(f"machine: {machine_load()}; two-thread headroom now {thread_headroom():.2f}x "
+              "(a trivially parallel loop on 2 threads vs 1)")
         scene = build_scene(folder, args.frames, args.max_edge)
         cell = scene.cell
         print(f"scene in {folder}: {sum(cell.triangles.values())} triangles "

@@ -11,14 +11,16 @@
   coordinates. The table stands on the floor (legs' feet on the floor's top face), the
   posts and the robot's base stand on the table top (z = 0);
 - ``joints.csv``: ``time`` and ``j1`` .. ``j7`` at 100 Hz, sums of sinusoids. The arm
-  sweeps about its base (j1) with its gripper low over the table; ``post_a`` is placed
-  (by forward kinematics of the trajectory) so that the gripper's fingers run into it
-  around the largest j1 angle, and nowhere else does the arm touch anything it is not
-  joined to. The wrist roll ``j7`` swings up to 8 degrees per frame.
+  sweeps about its base (j1) three times, the middle sweep the widest, with its gripper low
+  over the table; ``post_a`` is placed (by forward kinematics of the trajectory) just
+  beyond the gripper's farthest turn, so that the gripper runs 2.5 cm into it there, and
+  nowhere else does the arm touch anything it is not joined to (checked by collide and
+  python-fcl in bench_robot.py). The wrist roll ``j7`` swings up to 8 degrees per frame,
+  so the spinning gripper touches post_a on and off during that window.
 
 It returns a ``Cell`` with the names, triangle counts and the *expected* contact frames
 of link7 with post_a: the frames at which a vertex of the gripper lies inside post_a's
-solid cylinder or a vertex of post_a inside one of the gripper's solid boxes (an
+solid cylinder or a vertex of post_a inside one of the gripper's solid primitives (an
 independent check, from this module's own kinematics: a contact that only crosses
 edges is missed by it, so a collision checker may find a frame or two more at the
 window's ends).

@@ -103,20 +103,52 @@ def _orient2d_exact(ax, ay, bx, by, cx, cy):
     return _expansion_sign(terms)
 
 
+#: the short exact expansions multiply differences: those of this size or zero cannot underflow
+_TINY = 2.0 ** -300
+
+
+@njit(cache=True)
+def _exact_difference(a, b, x):
+    """x = fl(a - b) is exactly a - b (Shewchuk's Two-Diff tail is zero) and is zero or at
+    least _TINY in magnitude, so that products of three such differences and their
+    rounding errors stay clear of underflow."""
+    b_virtual = a - x
+    a_virtual = x + b_virtual
+    return (a - a_virtual) + (b_virtual - b) == 0.0 and (x == 0.0 or abs(x) >= _TINY)
+
+
+@njit(cache=True)
+def _orient2d_exact_diffs(acx, acy, bcx, bcy):
+    """Exact sign of acx * bcy - acy * bcx for float64 inputs (4 exact terms)."""
+    terms = np.empty(4)
+    terms[0], terms[1] = _two_product(acx, bcy)
+    x, y = _two_product(acy, bcx)
+    terms[2] = -x
+    terms[3] = -y
+    return _expansion_sign(terms)
+
+
 @njit(cache=True)
 def orient2d(ax, ay, bx, by, cx, cy):
     """Exact sign of det[[ax-cx, ay-cy], [bx-cx, by-cy]].
 
     +1 when a, b, c turn counter-clockwise, -1 clockwise, 0 when collinear.
     """
-    left = (ax - cx) * (by - cy)
-    right = (ay - cy) * (bx - cx)
+    acx = ax - cx
+    acy = ay - cy
+    bcx = bx - cx
+    bcy = by - cy
+    left = acx * bcy
+    right = acy * bcx
     det = left - right
     bound = _ORIENT2D_BOUND * (abs(left) + abs(right))
     if det > bound:
         return 1
     if -det > bound:
         return -1
+    if (_exact_difference(ax, cx, acx) and _exact_difference(ay, cy, acy) and _exact_difference(bx, cx, bcx)
+            and _exact_difference(by, cy, bcy)):
+        return _orient2d_exact_diffs(acx, acy, bcx, bcy)  # the differences are exact: a short expansion
     return _orient2d_exact(ax, ay, bx, by, cx, cy)
 
 
@@ -189,7 +221,24 @@ def orient3d(a, b, c, d):
         return 1
     if -det > bound:
         return -1
+    if (_exact_difference(a[0], d[0], adx) and _exact_difference(a[1], d[1], ady)
+            and _exact_difference(a[2], d[2], adz) and _exact_difference(b[0], d[0], bdx)
+            and _exact_difference(b[1], d[1], bdy) and _exact_difference(b[2], d[2], bdz)
+            and _exact_difference(c[0], d[0], cdx) and _exact_difference(c[1], d[1], cdy)
+            and _exact_difference(c[2], d[2], cdz)):
+        # the differences are exact (Shewchuk's stage B case, common for coplanar grids):
+        # the determinant of the differences themselves, 24 exact terms instead of 96
+        return _orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz)
     return _orient3d_exact(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
+
+
+@njit(cache=True)
+def _orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz):
+    """Exact sign of det[[adx, ady, adz], [bdx, bdy, bdz], [cdx, cdy, cdz]] (float64 entries)."""
+    terms = np.empty(24)
+    _det3_terms(np.array((adx, ady, adz)), np.array((bdx, bdy, bdz)), np.array((cdx, cdy, cdz)), 1.0, terms,
+                    np.int64(0))
+    return _expansion_sign(terms)
 
 
 # --- closed segments and triangles -------------------------------------------

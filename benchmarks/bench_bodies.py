@@ -39,9 +39,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from benchlib import median, parse_workers, thread_headroom
+from benchlib import median, parse_workers, print_table, thread_headroom
 from scalelib import (FclManager, ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, env_note,
-                      interleaved_scans, orthonormalize, poses_from, report_scans_and_fcl, rotations, write_scene)
+                      interleaved_scans, orthonormalize, poses_from, print_breakdown, report_scans_and_fcl, rotations,
+                      write_scene)
 
 from collide.load import load_mesh
 
@@ -111,6 +112,8 @@ def main(argv=None):
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--workers", default="1,2", help="comma-separated thread counts (1 is always run)")
     parser.add_argument("--modes", default="discrete,continuous")
+    parser.add_argument("--breakdown-frames", type=int, help="section 3 on the first N frames only (0: skip it)")
+    parser.add_argument("--breakdown-repeat", type=int, default=3)
     parser.add_argument("--out", help="folder for the scene and results (default: a temporary folder, removed)")
     args = parser.parse_args(argv)
     workers_list = sorted(set(parse_workers(args.workers)) | {1})
@@ -154,7 +157,9 @@ def main(argv=None):
         print(f"   contacts involve {len({h[1:] for h in fcl_hits['manager']})} object pairs "
               f"({len(wall_hits)} with a wall); python-fcl manager per frame: "
               f"{1e6 * median(fcl_times['manager']) / n:.0f} us")
-        print("\n3. acceptance")
+        if args.breakdown_frames != 0:
+            print_breakdown(meshes_dir, traj, modes, n, args.breakdown_repeat, print_table, args.breakdown_frames)
+        print("\n4. acceptance")
         accept_continuous(runs, modes, peer_name, peer)
         accept_discrete_fcl(runs, modes, peer_name, peer, fcl_hits, folder, target_applies=k >= 1000,
                             scene="1000 bodies")

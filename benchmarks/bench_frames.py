@@ -43,9 +43,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from benchlib import fcl_objects, median, parse_workers, thread_headroom
-from scalelib import (FclManager, ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, acceptance,
-                      env_note, fcl_pair_loop, interleaved_scans, poses_from, report_scans_and_fcl, rotations,
+from benchlib import fcl_objects, median, parse_workers, print_table, thread_headroom
+from scalelib import (FclManager, ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, acceptance, env_note,
+                      fcl_pair_loop, interleaved_scans, poses_from, print_breakdown, report_scans_and_fcl, rotations,
                       scan_seconds, walls, write_scene)
 
 from collide.load import load_mesh
@@ -96,6 +96,8 @@ def main(argv=None):
     parser.add_argument("--workers", default="1,2", help="comma-separated thread counts (1 is always run)")
     parser.add_argument("--modes", default="discrete,continuous")
     parser.add_argument("--no-fcl-manager", action="store_true", help="skip the DynamicAABBTree manager loop")
+    parser.add_argument("--breakdown-frames", type=int, help="section 3 on the first N frames only (0: skip it)")
+    parser.add_argument("--breakdown-repeat", type=int, default=3)
     parser.add_argument("--out", help="folder for the scene and results (default: a temporary folder, removed)")
     args = parser.parse_args(argv)
     workers_list = sorted(set(parse_workers(args.workers)) | {1})
@@ -134,14 +136,16 @@ def main(argv=None):
         scan_env = ScanEnv(folder)
         configs = list(itertools.product(modes, workers_list))
         runs, identical = interleaved_scans(scan_env, meshes_dir, traj, configs, args.repeat, between=fcl_round)
-        report(args, n, runs, identical, fcl_times, fcl_hits, build_s, folder, modes, workers_list)
+        report(args, n, runs, identical, fcl_times, fcl_hits, build_s, folder, modes, workers_list, meshes_dir, traj)
         print(f"machine after: {env_note()}")
     return 0
 
 
-def report(args, n, runs, identical, fcl_times, fcl_hits, build_s, folder, modes, workers_list):
+def report(args, n, runs, identical, fcl_times, fcl_hits, build_s, folder, modes, workers_list, meshes_dir, traj):
     peer_name, peer = report_scans_and_fcl(args.repeat, n, runs, fcl_times, fcl_hits, build_s, folder, modes)
-    print("\n3. acceptance")
+    if args.breakdown_frames != 0:
+        print_breakdown(meshes_dir, traj, modes, n, args.breakdown_repeat, print_table, args.breakdown_frames)
+    print("\n4. acceptance")
     accept_continuous(runs, modes, peer_name, peer)
     if "continuous" in modes:
         wall = median(walls(runs[("continuous", 1)]))

@@ -39,7 +39,8 @@ import trimesh
 
 from benchlib import fcl_objects, median, parse_workers, print_table, thread_headroom
 from scalelib import (ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, acceptance, env_note,
-                      fcl_pair_loop, interleaved_scans, poses_from, report_scans_and_fcl, rotations, write_scene)
+                      fcl_pair_loop, interleaved_scans, poses_from, print_breakdown, report_scans_and_fcl, rotations,
+                      write_scene)
 
 from collide.load import load_mesh
 
@@ -102,6 +103,8 @@ def main(argv=None):
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--workers", default="1,2", help="comma-separated thread counts (1 is always run)")
     parser.add_argument("--modes", default="discrete,continuous")
+    parser.add_argument("--breakdown-frames", type=int, help="section 3 on the first N frames only (0: skip it)")
+    parser.add_argument("--breakdown-repeat", type=int, default=3)
     parser.add_argument("--out", help="folder for the scene and results (default: a temporary folder, removed)")
     args = parser.parse_args(argv)
     workers_list = sorted(set(parse_workers(args.workers)) | {1})
@@ -164,7 +167,9 @@ def main(argv=None):
         print_table(["", "load s", "build s", "load+build s", "wall s", "mesh/BVH hits"], rows)
         cold_total = median([r.summary["seconds"]["load"] + r.summary["seconds"]["build"] for r in cold])
 
-        print("\n3. acceptance")
+        if args.breakdown_frames != 0:
+            print_breakdown(meshes_dir, traj, modes, n, args.breakdown_repeat, print_table, args.breakdown_frames)
+        print("\n4. acceptance")
         accept_continuous(runs, modes, peer_name, peer)
         per_mesh = cold_total / 2
         target = "<= 5 s" if args.triangles >= 1_000_000 else "<= 5 s at 1M triangles; reported"

@@ -152,8 +152,9 @@ def per_repeat_ratio(numerators, denominators):
 
 
 def scan_table(runs, n_frames):
-    """Rows (mode, workers, scan s, wall s, load s, build s, jit s, contacts, pairs in contact,
-    frames in contact): medians."""
+    """Rows (mode, workers, scan s, wall s, load s, build s, jit s, rest s (whole process minus
+    those stages: interpreter start, imports, checks, output), scan us per frame, contacts,
+    pairs in contact, frames in contact): medians."""
     rows = []
     for (mode, workers), rs in runs.items():
         s = rs[-1].summary
@@ -161,9 +162,10 @@ def scan_table(runs, n_frames):
                      median([r.summary["seconds"]["load"] for r in rs]),
                      median([r.summary["seconds"]["build"] for r in rs]),
                      median([r.summary["seconds"]["jit"] for r in rs]),
+                     median([r.wall - sum(r.summary["seconds"].values()) for r in rs]),
                      f"{1e6 * median(scan_seconds(rs)) / n_frames:.1f}",
                      str(s["contacts"]), str(s["pairs_in_contact"]), str(s["frames_in_contact"])])
-    return ["mode", "workers", "scan s", "wall s", "load s", "build s", "jit s", "scan us/frame", "contacts",
+    return ["mode", "workers", "scan s", "wall s", "load s", "build s", "jit s", "rest s", "scan us/frame", "contacts",
             "pairs hit", "frames hit"], rows
 
 
@@ -349,3 +351,210 @@ def accept_workers(runs, identical, modes, workers_list, target_applies, scene):
         if len(workers_list) > 1:
             print(f"ACCEPTANCE: {mode} contacts identical across --workers {','.join(map(str, workers_list))} "
                   f"(every round, byte for byte): {'met' if identical[mode] else 'NOT met'}")
+
+
+# --- in-process breakdown of the scan stage ---------------------------------------------------
+
+#: the steps of collide.pipeline.scan's scan stage, timed by wrapping them (this process only)
+SCAN_STEPS = ("_run_discrete", "_run_swept", "intervals_from_hits", "intervals_from_steps",
+              "smallest_pairs_at_frames", "_fill_contact_points")
+
+
+def scan_steps(meshes, trajectory, mode, workers=1):
+    """Run ``collide.scan`` in this process with the steps of its scan stage wrapped in
+    timers (collide.pipeline's module attributes, restored afterwards; nothing else
+    changes). Returns (scan stage seconds, {step: seconds})."""
+    import collide
+    from collide import pipeline
+    times = {}
+    originals = {name: getattr(pipeline, name) for name in SCAN_STEPS}
+
+    def timed(name, function):
+        def wrapper(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                times[name] = times.get(name, 0.0) + time.perf_counter() - start
+        return wrapper
+
+    collide.scan(meshes, trajectory, mode=mode, workers=workers, frames="0:2")   # kernels loaded
+    try:
+        for name, function in originals.items():
+            setattr(pipeline, name, timed(name, function))
+        result = collide.scan(meshes, trajectory, mode=mode, workers=workers)
+    finally:
+        for name, function in originals.items():
+            setattr(pipeline, name, function)
+    return result.stats["scan_s"], times
+
+
+_LEVELS = None
+
+
+def _swept_levels_kernel():
+    """A numba driver that repeats collide.swept.scan_intervals' loop over steps and object
+    pairs (one thread) but stops at a given level: 1 object pairs (boxes, sweep and prune,
+    swept spheres), 2 + BVH tandem descent (broad.RULE_SWEPT leaf pairs), 3 + triangle pair
+    boxes (narrow._swept_candidates), the CCD queries being all that the full kernel adds.
+    Sub-stepped pairs (work count ``substeps``) are treated as whole steps here. Compiled
+    on first use (not cached: it inlines collide's kernels)."""
+    global _LEVELS
+    if _LEVELS is not None:
+        return _LEVELS
+    from numba import njit
+
+    from collide.broad import RULE_SWEPT, sweep_and_prune
+    from collide.discrete import object_margins, object_world_boxes, pair_leaves, pair_scratch
+    from collide.filters import pair_selected
+    from collide.motion import MOTION_WIDTH, step_motions
+    from collide.narrow import _swept_candidates
+    from collide.rows import COUNT_WIDTH
+    from collide.swept import ensure_world, spheres_may_meet
+
+    @njit(nogil=True)
+    def levels(ps, poses, static, pairs, interpolation, dist_tol, level):
+        n_objects = poses.shape[1]
+        n_world = ps.world_start[n_objects]
+        world0 = np.empty((n_world, 3))
+        world1 = np.empty((n_world, 3))
+        stamp0 = np.full(n_objects, -1, np.int64)
+        stamp1 = np.full(n_objects, -1, np.int64)
+        scratch = pair_scratch()
+        stack = np.empty((64, 2), np.int64)
+        leaves = np.empty((256, 2), np.int64)
+        cand = np.empty((64, 2), np.int64)
+        counts = np.zeros(COUNT_WIDTH, np.int64)
+        margin = np.empty(n_objects)
+        motion = np.empty((n_objects, MOTION_WIDTH))
+        kept = 0
+        for k in range(poses.shape[0] - 1):
+            rp0 = poses[k]
+            rp1 = poses[k + 1]
+            object_margins(ps, rp0, rp1, margin)
+            step_motions(interpolation, rp0, rp1, margin, motion)
+            lo, hi = object_world_boxes(ps, rp0, rp1, motion, dist_tol, margin)
+            candidates = sweep_and_prune(lo, hi)
+            for c in range(candidates.shape[0]):
+                a = candidates[c, 0]
+                b = candidates[c, 1]
+                if not pair_selected(pairs, a, b):
+                    continue
+                pair_margin = margin[a] + margin[b] + dist_tol
+                if not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
+                    continue
+                kept += 1
+                if level < 2:
+                    continue
+                stack, leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, RULE_SWEPT, pair_margin, scratch,
+                                                      stack, leaves, counts)
+                if level < 3 or n_leaves == 0:
+                    continue
+                for o in (a, b):
+                    ensure_world(ps, rp0, o, k, static, stamp0, world0)
+                    ensure_world(ps, rp1, o, k + 1, static, stamp1, world1)
+                cand, n = _swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+                                            ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
+                                            world0, world1, ps.world_start[a], ps.world_start[b], motion[a],
+                                            motion[b], dist_tol, cand, counts)
+        return kept, counts
+
+    _LEVELS = levels
+    return levels
+
+
+def kernel_breakdown(meshes, trajectory, repeat=3, interpolation="screw"):
+    """Where one thread's kernel time goes, in this process (medians of ``repeat``):
+    {"discrete frame kernel": s (collide.discrete.scan_frames, all frames, yes/no),
+     "swept: object pairs": s, "swept: + BVH descent": s, "swept: + triangle boxes": s,
+     "swept: full kernel": s (collide.swept.scan_intervals)}, plus the compile time of the
+    driver ("compile driver")."""
+    from collide import config
+    from collide.discrete import scan_frames
+    from collide.filters import build_filters
+    from collide.load import load_scene
+    from collide.motion import INTERPOLATIONS
+    from collide.packed import pack_scene
+    from collide.pipeline import scene_size
+    from collide.swept import scan_intervals
+
+    scene = load_scene(meshes, trajectory)
+    ps, _ = pack_scene(scene.meshes, scene.object_mesh)
+    poses = np.ascontiguousarray(scene.poses)
+    filters = build_filters(scene.names, (), (), scene.ignore, scene.trajectory_path)
+    pairs = filters.kernel_filter(extra_ignore=scene.static)
+    dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
+    code = INTERPOLATIONS[interpolation]
+    n = poses.shape[0]
+    start = time.perf_counter()
+    levels = _swept_levels_kernel()
+    levels(ps, poses[:2], scene.static, pairs, code, dist_tol, 3)
+    compile_s = time.perf_counter() - start
+    scan_frames(ps, poses[:2], scene.static, pairs, 0, 2, False, True)
+    scan_intervals(ps, poses[:2], scene.static, pairs, 0, 1, code, config.TIME_TOL, dist_tol)
+    jobs = {"discrete frame kernel": lambda: scan_frames(ps, poses, scene.static, pairs, 0, n, False, True),
+            "swept: object pairs": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 1),
+            "swept: + BVH descent": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 2),
+            "swept: + triangle boxes": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 3),
+            "swept: full kernel": lambda: scan_intervals(ps, poses, scene.static, pairs, 0, n - 1, code,
+                                                         config.TIME_TOL, dist_tol)}
+    times = {k: [] for k in jobs}
+    for _ in range(repeat):
+        for name, job in jobs.items():
+            start = time.perf_counter()
+            job()
+            times[name].append(time.perf_counter() - start)
+    out = {k: median(v) for k, v in times.items()}
+    out["compile driver"] = compile_s
+    return out
+
+
+def print_breakdown(meshes, trajectory, mode_list, n_frames, repeat, print_table, frames=None):
+    """Section 3: the in-process breakdowns (scan stage steps; kernel levels), on the first
+    ``frames`` frames (default all)."""
+    what = "all frames"
+    if frames is not None and frames < n_frames:
+        trajectory, n_frames = first_frames(trajectory, frames), frames
+        what = f"the first {n_frames} frames"
+    print(f"\n3. where the time goes (in this process, one thread, {what}; scan stage steps: one run each; "
+          f"kernels: medians of {repeat})")
+    rows = []
+    for mode in mode_list:
+        stage, steps = scan_steps(meshes, trajectory, mode)
+        rest = stage - sum(steps.values())
+        rows.append([mode, stage] + [steps.get(s, 0.0) for s in SCAN_STEPS] + [rest])
+    print_table(["scan stage", "total s", *[s.strip("_") for s in SCAN_STEPS], "other s"], rows)
+    print("   (smallest_pairs_at_frames: re-scans, serially, every frame where a contact interval begins, to "
+          "report its smallest triangle pair)")
+    if "continuous" not in mode_list:
+        return
+    b = kernel_breakdown(meshes, trajectory, repeat)
+    steps = max(n_frames - 1, 1)
+    full = b["swept: full kernel"]
+    rows = [["discrete frame kernel (scan_frames, all frames)", b["discrete frame kernel"],
+             1e6 * b["discrete frame kernel"] / n_frames, ""]]
+    previous = 0.0
+    for name in ("swept: object pairs", "swept: + BVH descent", "swept: + triangle boxes"):
+        share = f"{100 * (b[name] - previous) / full:.0f}%"
+        rows.append([name + " (cumulative)", b[name], 1e6 * b[name] / steps, share])
+        previous = b[name]
+    share = f"{100 * (full - previous) / full:.0f}% (CCD queries)"
+    rows.append(["swept: full kernel (scan_intervals)", full, 1e6 * full / steps, share])
+    print_table(["kernel", "s", "us per frame/step", "share of the swept kernel"], rows)
+    print(f"   swept full kernel / discrete frame kernel: {full / b['discrete frame kernel']:.1f}x "
+          f"(driver compiled in {b['compile driver']:.0f} s, untimed)")
+
+
+
+def first_frames(trajectory, frames):
+    """A copy of a poses/matrix trajectory file with its first ``frames`` frames only
+    (next to it, named traj_first<N>.h5); returns its path."""
+    trajectory = Path(trajectory)
+    out = trajectory.with_name(f"{trajectory.stem}_first{frames}.h5")
+    with h5py.File(trajectory, "r") as src, h5py.File(out, "w") as dst:
+        dst["time"] = src["time"][:frames]
+        for name in ("objects/name", "objects/mesh"):
+            if name in src:
+                dst.create_dataset(name, data=src[name].asstr()[()].tolist(), dtype=h5py.string_dtype())
+        dst["poses/matrix"] = src["poses/matrix"][:frames]
+    return out

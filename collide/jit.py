@@ -66,6 +66,7 @@ class ContentKeyedLocator(caching._CacheLocator):
     source digest as freshness stamp."""
 
     def __init__(self, py_func, py_file):
+        self._py_file = py_file  # numba names it in its "cannot cache" warning
         self._lineno = py_func.__code__.co_firstlineno
         self._cache_path = str(kernel_cache_dir())
 

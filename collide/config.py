@@ -78,10 +78,15 @@ MAX_COORDINATE = 1e90
 #: machine's physical memory. Unitless.
 MAX_MEMORY_FRACTION = 0.5
 
-#: Estimated peak bytes per (frame, object) pose while a trajectory is read and
-#: scanned: the float64 read (up to 16 values), rotation matrices, norms and the
-#: [R | p] copies made by load and scan (about 60 float64 values). Bytes.
-POSE_BYTES = 512
+#: Poses are read and converted this many (frame, object) poses at a time, so the
+#: conversion's temporaries (about 60 float64 values per pose) stay a few tens of
+#: MB whatever the trajectory's length. Count.
+POSE_CHUNK = 65536
+
+#: Estimated peak bytes per selected (frame, object) pose while a trajectory is
+#: read and scanned: the [R | p] array kept (12 float64), a second one when static
+#: meshes are added, and the per-pose checks of the whole scene. Bytes.
+POSE_BYTES = 256
 
 #: Estimated bytes per string read from an HDF5 dataset (object names, mesh
 #: names): the Python str object, its list slot and the HDF5 read buffer. Bytes.

@@ -46,9 +46,10 @@ class Trajectory(NamedTuple):
     time: np.ndarray      #: float64 (T,), seconds (or the file's unit)
     names: list           #: N object names
     mesh_files: list      #: N mesh file names or stems from objects/mesh, or None
-    poses: np.ndarray     #: float64 (T, N, 3, 4): rows [R | p], world = R @ body + p
+    poses: np.ndarray     #: float64 (S, N, 3, 4) at the S selected frames: rows [R | p], world = R @ body + p
     pose_dataset: str = "poses/position"  #: where the positions came from (for messages)
     ignore: tuple = ()    #: (glob_a, glob_b) pairs of filters/ignore: object pairs never checked
+    frame_index: np.ndarray = None  #: int64 (S,): the selected frames (indices into time)
 
 
 # --- meshes -----------------------------------------------------------------------------
@@ -381,6 +382,28 @@ def quaternions_to_matrices(q, order):
     return r
 
 
+def select_frames(frames, n_frames):
+    """The frames selected by ``frames`` (None: all; a slice; or "START:STOP[:STEP]", a
+    Python slice with a positive step), as a range of frame indices (nothing allocated:
+    n_frames may be any declared size)."""
+    if frames is None:
+        return range(n_frames)
+    if isinstance(frames, str):
+        parts = frames.split(":")
+        if len(parts) not in (2, 3):
+            raise UsageError(f"--frames {frames!r}: expected START:STOP (Python slice, e.g. 0:100 or -50:)")
+        try:
+            frames = slice(*(int(p) if p.strip() else None for p in parts))
+        except ValueError:
+            raise UsageError(f"--frames {frames!r}: expected integers in START:STOP") from None
+    if frames.step is not None and frames.step <= 0:
+        raise UsageError("frames: the step must be positive")
+    index = range(n_frames)[frames]
+    if len(index) == 0:
+        raise UsageError(f"frames {frames.start}:{frames.stop} selects no frame of the {n_frames} in the trajectory")
+    return index
+
+
 def _pose_datasets(src, n_frames, n_objects):
     """("quaternion" | "matrix", {name: dataset}) with declared shapes checked; nothing read."""
     has_quat = _exists(src, "poses/position") or _exists(src, "poses/orientation")
@@ -410,21 +433,34 @@ def lengths(vectors):
         return scale * np.sqrt(((vectors / safe[..., None]) ** 2).sum(axis=-1))
 
 
-def _check_positions(src, position, dataset):
-    """Refuse positions (T, N, 3) farther than config.MAX_COORDINATE from the origin
-    (world coordinates that large overflow the exact tests)."""
+def _check_positions(src, position, frames, dataset):
+    """Refuse positions (S, N, 3) at file frames ``frames`` (S,) farther than
+    config.MAX_COORDINATE from the origin (world coordinates that large overflow the
+    exact tests)."""
     magnitude = lengths(position)
     if magnitude.size and not magnitude.max() <= config.MAX_COORDINATE:
         t, o = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
-        raise InputError(src.path, f"position at frame {t}, object {o} lies {magnitude[t, o]:.3g} from the "
-                         "origin", f"positions within {config.MAX_COORDINATE:g} of the origin", dataset=dataset)
+        raise InputError(src.path, f"position at frame {frames[t]}, object {o} lies {magnitude[t, o]:.3g} from "
+                         "the origin", f"positions within {config.MAX_COORDINATE:g} of the origin", dataset=dataset)
 
 
-def _poses_from_quaternions(src, datasets):
-    position = _read_float(src, datasets["poses/position"], "poses/position", "finite positions")
-    _check_positions(src, position, "poses/position")
+def _read_frames(src, ds, name, frames, expected):
+    """float64 rows of ``ds`` (frames first) at the file frames ``frames`` (int64, evenly
+    spaced, increasing), checked finite; errors name file frame numbers."""
+    step = int(frames[1] - frames[0]) if frames.size > 1 else 1
+    try:
+        data = np.asarray(ds[int(frames[0]):int(frames[-1]) + 1:step], dtype=np.float64)
+    except (OSError, ValueError, TypeError, RuntimeError) as exc:
+        raise InputError(src.path, f"cannot read ({str(exc)[:80]})", expected, dataset=name) from None
+    if not np.isfinite(data).all():
+        idx = np.argwhere(~np.isfinite(data))[0]
+        idx = (int(frames[idx[0]]),) + tuple(int(i) for i in idx[1:])
+        raise InputError(src.path, f"non-finite value at index {idx}", "finite numbers", dataset=name)
+    return data
+
+
+def _quaternion_order(src, datasets):
     orientation_ds = datasets["poses/orientation"]
-    orientation = _read_float(src, orientation_ds, "poses/orientation", "finite unit quaternions")
     order = _string_attr(src, orientation_ds, "quaternion_order", "poses/orientation")
     if order is None:
         raise InputError(src.path, "missing attribute quaternion_order", 'quaternion_order = "wxyz" or "xyzw"',
@@ -432,27 +468,37 @@ def _poses_from_quaternions(src, datasets):
     if order not in QUATERNION_ORDERS:
         raise InputError(src.path, f"unknown quaternion_order {order!r}", '"wxyz" or "xyzw"',
                          dataset="poses/orientation")
+    return order
+
+
+def _poses_from_quaternions(src, datasets, frames, order, out):
+    """Fill ``out`` (S, N, 3, 4) with the poses at file frames ``frames`` (S,) from
+    poses/position and poses/orientation; returns the largest quaternion norm error."""
+    position = _read_frames(src, datasets["poses/position"], "poses/position", frames, "finite positions")
+    _check_positions(src, position, frames, "poses/position")
+    orientation = _read_frames(src, datasets["poses/orientation"], "poses/orientation", frames,
+                               "finite unit quaternions")
     norm = np.linalg.norm(orientation, axis=-1)
     off = np.abs(norm - 1.0)
     if (off > config.QUATERNION_NORM_TOL).any():
         t, o = np.unravel_index(int(np.argmax(off)), off.shape)
-        raise InputError(src.path, f"quaternion of norm {norm[t, o]:.6g} at frame {t}, object {o}",
+        raise InputError(src.path, f"quaternion of norm {norm[t, o]:.6g} at frame {frames[t]}, object {o}",
                          f"unit quaternions (norm within {config.QUATERNION_NORM_TOL} of 1)",
                          dataset="poses/orientation")
-    if (off > 1e-12).any():
-        log.warning("%s:poses/orientation: normalising quaternions (largest norm error %.2g)",
-                    escape_text(src.path), float(off.max()))
-    rotation = quaternions_to_matrices(orientation / norm[..., None], order)
-    return np.concatenate([rotation, position[..., None]], axis=-1)
+    out[..., :3] = quaternions_to_matrices(orientation / norm[..., None], order)
+    out[..., 3] = position
+    return float(off.max(initial=0.0))
 
 
-def _poses_from_matrices(src, datasets):
-    matrix = _read_float(src, datasets["poses/matrix"], "poses/matrix", "finite rigid 4x4 transforms")
-    _check_positions(src, matrix[..., :3, 3], "poses/matrix")
+def _poses_from_matrices(src, datasets, frames, order, out):
+    """Fill ``out`` (S, N, 3, 4) with the rigid transforms of poses/matrix at file frames
+    ``frames`` (S,), checked; returns 0.0 (no normalisation)."""
+    matrix = _read_frames(src, datasets["poses/matrix"], "poses/matrix", frames, "finite rigid 4x4 transforms")
+    _check_positions(src, matrix[..., :3, 3], frames, "poses/matrix")
     last_row = np.abs(matrix[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=-1)
     if (last_row > config.MATRIX_LAST_ROW_TOL).any():
         t, o = np.unravel_index(int(np.argmax(last_row)), last_row.shape)
-        raise InputError(src.path, f"last row is {matrix[t, o, 3].tolist()} at frame {t}, object {o}",
+        raise InputError(src.path, f"last row is {matrix[t, o, 3].tolist()} at frame {frames[t]}, object {o}",
                          "last row 0 0 0 1", dataset="poses/matrix")
     rotation = matrix[..., :3, :3]
     gram = np.einsum("...ki,...kj->...ij", rotation, rotation)
@@ -461,22 +507,44 @@ def _poses_from_matrices(src, datasets):
     bad = ~(error <= config.ROTATION_ORTHONORMAL_TOL) | ~(det > 0)
     if bad.any():
         t, o = np.argwhere(bad)[0]
-        raise InputError(src.path, f"not a rigid transform at frame {t}, object {o} "
+        raise InputError(src.path, f"not a rigid transform at frame {frames[t]}, object {o} "
                          f"(|R^T R - I| = {error[t, o]:.3g}, det = {det[t, o]:.3g})",
                          f"a rotation (orthonormal within {config.ROTATION_ORTHONORMAL_TOL}, det > 0) "
                          "and a translation", dataset="poses/matrix")
-    return np.ascontiguousarray(matrix[..., :3, :])
+    out[...] = matrix[..., :3, :]
+    return 0.0
 
 
-def _trajectory_bytes(n_frames, n_objects, n_string_columns):
+def _read_poses(src, encoding, datasets, frames, n_objects):
+    """Poses float64 (S, N, 3, 4) at the file frames ``frames`` (S,), read and converted
+    config.POSE_CHUNK object-frames at a time, so that the conversion's temporaries stay
+    small whatever the number of frames (memory: the result, plus one chunk)."""
+    poses = np.empty((frames.size, n_objects, 3, 4))
+    order = _quaternion_order(src, datasets) if encoding == "quaternion" else None
+    convert = _poses_from_quaternions if encoding == "quaternion" else _poses_from_matrices
+    chunk = max(1, config.POSE_CHUNK // max(n_objects, 1))
+    norm_error = 0.0
+    for start in range(0, frames.size, chunk):
+        stop = min(start + chunk, frames.size)
+        norm_error = max(norm_error, convert(src, datasets, frames[start:stop], order, poses[start:stop]))
+    if norm_error > 1e-12:
+        log.warning("%s:poses/orientation: normalising quaternions (largest norm error %.2g)",
+                    escape_text(src.path), norm_error)
+    return poses
+
+
+def _trajectory_bytes(n_frames, n_selected, n_objects, n_string_columns):
     """Estimated peak memory (bytes) of reading and scanning a trajectory of these
-    declared sizes (see config.POSE_BYTES and friends)."""
+    declared sizes, ``n_selected`` of its frames scanned (see config.POSE_BYTES and friends)."""
     return (n_frames * config.NUMBER_BYTES + n_objects * n_string_columns * config.STRING_BYTES
-            + n_frames * n_objects * config.POSE_BYTES)
+            + n_selected * n_objects * config.POSE_BYTES)
 
 
-def load_trajectory(path, allow_external=False, max_memory=None):
+def load_trajectory(path, allow_external=False, max_memory=None, frames=None):
     """Read and validate a trajectory file (see README, "Trajectory").
+
+    ``frames`` (None, a slice or "START:STOP[:STEP]") selects the frames whose poses
+    are read and checked (all by default); the others are never read.
 
     Declared shapes are checked, and the memory they need estimated against
     ``max_memory`` (bytes or "4G"; default: files.memory_limit()), before any
@@ -486,10 +554,10 @@ def load_trajectory(path, allow_external=False, max_memory=None):
     """
     path = Path(path)
     with open_hdf5(path, TRAJECTORY) as h5:
-        return _read_trajectory(h5, path, allow_external, max_memory)
+        return _read_trajectory(h5, path, allow_external, max_memory, frames)
 
 
-def _read_trajectory(h5, path, allow_external, max_memory):
+def _read_trajectory(h5, path, allow_external, max_memory, frames=None):
     """A Trajectory from an open h5py.File (a file's or an in-memory one); ``path`` names
     it in messages."""
     with np.errstate(all="ignore"):
@@ -505,17 +573,19 @@ def _read_trajectory(h5, path, allow_external, max_memory):
                 raise InputError(path, f"has {mesh_ds.shape[0]} entries but objects/name has {n_objects}",
                                  "one mesh file name per object", dataset="objects/mesh")
             encoding, pose_ds = _pose_datasets(src, n_frames, n_objects)
-            check_memory(path, _trajectory_bytes(n_frames, n_objects, 1 + (mesh_ds is not None)),
-                         memory_limit(max_memory), f"a trajectory of {n_frames} frames and {n_objects} objects")
+            selected = select_frames(frames, n_frames)
+            check_memory(path, _trajectory_bytes(n_frames, len(selected), n_objects, 1 + (mesh_ds is not None)),
+                         memory_limit(max_memory), f"a trajectory of {len(selected)} frames and {n_objects} objects")
+            index = np.arange(selected.start, selected.stop, selected.step, dtype=np.int64)
             time = _read_time(src, time_ds)
             names, mesh_entries = _read_names(src, names_ds, mesh_ds)
             ignore = _read_ignore(src) if _exists(src, "filters/ignore") else ()
-            poses = (_poses_from_matrices if encoding == "matrix" else _poses_from_quaternions)(src, pose_ds)
+            poses = _read_poses(src, encoding, pose_ds, index, n_objects)
         except InputError:
             raise
         except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
             raise InputError(path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") from None
-    return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)), ignore)
+    return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)), ignore, index)
 
 
 # --- inputs in memory (Python API) ------------------------------------------------------------
@@ -527,7 +597,7 @@ MEMORY_TRAJECTORY_KEYS = {"time": "time", "names": "objects/name", "mesh": "obje
 MEMORY_TRAJECTORY = Path("<trajectory in memory>")
 
 
-def trajectory_from_arrays(data, max_memory=None):
+def trajectory_from_arrays(data, max_memory=None, frames=None):
     """Validate an in-memory trajectory exactly as a file is validated.
 
     data: a mapping with ``time`` (T,), ``names`` (N,) and either ``matrix`` (T, N, 4,
@@ -554,7 +624,7 @@ def trajectory_from_arrays(data, max_memory=None):
                 h5.create_dataset(name, data=array)
         if "quaternion_order" in data and "poses/orientation" in h5:
             h5["poses/orientation"].attrs["quaternion_order"] = str(data["quaternion_order"])
-        return _read_trajectory(h5, MEMORY_TRAJECTORY, False, max_memory)
+        return _read_trajectory(h5, MEMORY_TRAJECTORY, False, max_memory, frames)
 
 
 def mesh_from_arrays(name, mesh):
@@ -577,12 +647,13 @@ class Scene(NamedTuple):
     names: list            #: N object names: trajectory objects, then static meshes
     meshes: list           #: M distinct Mesh objects
     object_mesh: np.ndarray  #: int64 (N,), index into meshes
-    time: np.ndarray       #: float64 (T,)
-    poses: np.ndarray      #: float64 (T, N, 3, 4)
-    static: np.ndarray     #: bool (N,): identity pose at every frame
+    time: np.ndarray       #: float64 (T,): every frame's time
+    poses: np.ndarray      #: float64 (S, N, 3, 4) at the S selected frames
+    static: np.ndarray     #: bool (N,): identity pose at every selected frame
     trajectory_path: Path
     ignore: tuple = ()     #: the trajectory's filters/ignore pattern pairs
     unlisted: tuple = ()   #: names of the meshes the trajectory does not list (static at identity)
+    frame_index: np.ndarray = None  #: int64 (S,): the selected frames (indices into time)
 
 
 class MemoryMeshKey(NamedTuple):
@@ -617,22 +688,29 @@ def input_files(meshes_folder, trajectory_path, glob=None):
     return ([] if isinstance(trajectory_path, Mapping) else [Path(trajectory_path)]) + meshes
 
 
-def _check_reach(scene_names, meshes, object_mesh, poses, path, dataset):
+def _check_reach(scene_names, meshes, object_mesh, poses, frames, path, dataset):
     """Refuse a scene where |position| + |vertex| of some object at some frame exceeds
-    config.MAX_COORDINATE (world coordinates up to that size cannot overflow)."""
+    config.MAX_COORDINATE (world coordinates up to that size cannot overflow). poses
+    (S, N, 3, 4) are those of the file frames ``frames`` (S,)."""
     radius = np.array([float(lengths(m.vertices).max(initial=0.0)) for m in meshes])[object_mesh]
-    distance = lengths(poses[..., 3])                                        # (T, N)
-    reach = distance + radius[None, :]
-    if reach.size and not reach.max() <= config.MAX_COORDINATE:
-        t, o = np.unravel_index(int(np.argmax(reach)), reach.shape)
-        raise InputError(path, f"object {scene_names[o]!r} at frame {t} reaches {reach[t, o]:.3g} from the "
-                         f"origin (|position| {distance[t, o]:.3g} + mesh radius "
-                         f"{radius[o]:.3g})", f"world coordinates of magnitude at most {config.MAX_COORDINATE:g}",
-                         dataset=dataset)
+    chunk = max(1, config.POSE_CHUNK // max(poses.shape[1], 1))
+    for start in range(0, poses.shape[0], chunk):  # chunks of frames: small temporaries
+        distance = lengths(poses[start:start + chunk, :, :, 3])                   # (chunk, N)
+        reach = distance + radius[None, :]
+        if reach.size and not reach.max() <= config.MAX_COORDINATE:
+            t, o = np.unravel_index(int(np.argmax(reach)), reach.shape)
+            _refuse_reach(scene_names[o], frames[start + t], reach[t, o], distance[t, o], radius[o], path, dataset)
+
+
+def _refuse_reach(name, frame, reach, distance, radius, path, dataset):
+    raise InputError(path, f"object {name!r} at frame {frame} reaches {reach:.3g} from the "
+                     f"origin (|position| {distance:.3g} + mesh radius "
+                     f"{radius:.3g})", f"world coordinates of magnitude at most {config.MAX_COORDINATE:g}",
+                     dataset=dataset)
 
 
 def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=None, glob=None,
-               mesh_loader=None):
+               mesh_loader=None, frames=None):
     """Validate and load everything a scan needs.
 
     meshes_folder: a folder of mesh files, or a mapping {name: trimesh.Trimesh or
@@ -640,7 +718,8 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
     of arrays (trajectory_from_arrays). ``allow_external`` and ``max_memory`` are those
     of load_trajectory; the memory estimate is checked again with the static meshes'
     objects added. ``glob``: see mesh_files. mesh_loader(path) -> Mesh loads a mesh
-    file (default load_mesh; e.g. a cached loader).
+    file (default load_mesh; e.g. a cached loader). ``frames``: the frames to read (see
+    load_trajectory).
     """
     if isinstance(meshes_folder, Mapping):
         in_memory = {str(k): mesh_from_arrays(k, m) for k, m in meshes_folder.items()}
@@ -651,9 +730,9 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
         in_memory = {}
         files = mesh_files(meshes_folder, glob)
     if isinstance(trajectory_path, Mapping):
-        traj = trajectory_from_arrays(trajectory_path, max_memory)
+        traj = trajectory_from_arrays(trajectory_path, max_memory, frames)
     else:
-        traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory)
+        traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory, frames=frames)
     dataset = "objects/name" if traj.mesh_files is None else "objects/mesh"
     entries = traj.names if traj.mesh_files is None else traj.mesh_files
     used = [_resolve_mesh(files, entry, traj.path, dataset) for entry in entries]
@@ -664,9 +743,10 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
         if p.stem in taken:
             raise InputError(traj.path, f"object name {p.stem!r} is also an unused mesh",
                              "names that do not clash with static meshes", dataset="objects/name")
-    n_frames, n_objects = traj.time.shape[0], len(traj.names) + len(static_paths)
-    check_memory(traj.path, _trajectory_bytes(n_frames, n_objects, 2), memory_limit(max_memory),
-                 f"a scene of {n_frames} frames and {n_objects} objects")
+    n_frames, n_selected = traj.time.shape[0], traj.frame_index.size
+    n_objects = len(traj.names) + len(static_paths)
+    check_memory(traj.path, _trajectory_bytes(n_frames, n_selected, n_objects, 2), memory_limit(max_memory),
+                 f"a scene of {n_selected} frames and {n_objects} objects")
     mesh_paths = sorted(used_set) + static_paths
     mesh_loader = mesh_loader or load_mesh
     meshes = [in_memory[p.stem] if isinstance(p, MemoryMeshKey) else mesh_loader(p) for p in mesh_paths]
@@ -675,10 +755,12 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
     names = list(traj.names) + [p.stem for p in static_paths]
     identity = np.zeros((3, 4))
     identity[:, :3] = np.eye(3)
-    static_poses = np.broadcast_to(identity, (n_frames, len(static_paths), 3, 4))
-    poses = np.ascontiguousarray(np.concatenate([traj.poses, static_poses], axis=1))
-    _check_reach(names, meshes, object_mesh, poses, traj.path,
-                 traj.pose_dataset)
-    static = (poses == identity).all(axis=(0, 2, 3))
+    poses = traj.poses
+    if static_paths:  # the static meshes' objects come last, at identity
+        poses = np.empty((n_selected, n_objects, 3, 4))
+        poses[:, :len(traj.names)] = traj.poses
+        poses[:, len(traj.names):] = identity
+    _check_reach(names, meshes, object_mesh, poses, traj.frame_index, traj.path, traj.pose_dataset)
+    static = np.array([(poses[:, o] == identity).all() for o in range(n_objects)], dtype=bool)
     return Scene(names, meshes, object_mesh, traj.time, poses, static, traj.path, traj.ignore,
-                 tuple(p.stem for p in static_paths))
+                 tuple(p.stem for p in static_paths), traj.frame_index)

@@ -65,26 +65,6 @@ logging.addLevelName(NOTE, "note")
 MODES = ("continuous", "discrete")
 
 
-def parse_frames(frames, n_frames):
-    """Frame indices selected by ``frames``: None, a slice, or "START:STOP[:STEP]"."""
-    if frames is None:
-        return np.arange(n_frames)
-    if isinstance(frames, str):
-        parts = frames.split(":")
-        if len(parts) not in (2, 3):
-            raise UsageError(f"--frames {frames!r}: expected START:STOP (Python slice, e.g. 0:100 or -50:)")
-        try:
-            frames = slice(*(int(p) if p.strip() else None for p in parts))
-        except ValueError:
-            raise UsageError(f"--frames {frames!r}: expected integers in START:STOP") from None
-    if frames.step is not None and frames.step <= 0:
-        raise UsageError("frames: the step must be positive")
-    index = np.arange(n_frames)[frames]
-    if index.size == 0:
-        raise UsageError(f"frames {frames.start}:{frames.stop} selects no frame of the {n_frames} in the trajectory")
-    return index
-
-
 def versions():
     import h5py
     import numba
@@ -452,10 +432,9 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
     start = time.perf_counter()
     mesh_cache = MeshCache(enabled=cache)
     scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
-                       glob=glob, mesh_loader=mesh_cache.load_mesh)
+                       glob=glob, mesh_loader=mesh_cache.load_mesh, frames=frames)
     filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
-    index = parse_frames(frames, scene.time.shape[0])
-    poses = np.ascontiguousarray(scene.poses[index])
+    index, poses = scene.frame_index, scene.poses
     timings["load_s"] = time.perf_counter() - start
     continuous = mode == "continuous"
     ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,

@@ -38,11 +38,22 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-
 from benchlib import median, parse_workers, print_table, thread_headroom
-from scalelib import (FclManager, ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, env_note,
-                      interleaved_scans, orthonormalize, poses_from, print_breakdown, report_scans_and_fcl, rotations,
-                      write_scene)
+from scalelib import (
+    FclManager,
+    ScanEnv,
+    accept_continuous,
+    accept_discrete_fcl,
+    accept_workers,
+    env_note,
+    interleaved_scans,
+    orthonormalize,
+    poses_from,
+    print_breakdown,
+    report_scans_and_fcl,
+    rotations,
+    write_scene,
+)
 
 from collide.load import load_mesh
 

@@ -42,11 +42,25 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-
 from benchlib import fcl_objects, median, parse_workers, print_table, thread_headroom
-from scalelib import (FclManager, ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, acceptance, env_note,
-                      fcl_pair_loop, interleaved_scans, poses_from, print_breakdown, report_scans_and_fcl, rotations,
-                      scan_seconds, walls, write_scene)
+from scalelib import (
+    FclManager,
+    ScanEnv,
+    accept_continuous,
+    accept_discrete_fcl,
+    accept_workers,
+    acceptance,
+    env_note,
+    fcl_pair_loop,
+    interleaved_scans,
+    poses_from,
+    print_breakdown,
+    report_scans_and_fcl,
+    rotations,
+    scan_seconds,
+    walls,
+    write_scene,
+)
 
 from collide.load import load_mesh
 

@@ -36,11 +36,22 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-
 from benchlib import fcl_objects, median, parse_workers, print_table, thread_headroom
-from scalelib import (ScanEnv, accept_continuous, accept_discrete_fcl, accept_workers, acceptance, env_note,
-                      fcl_pair_loop, interleaved_scans, poses_from, print_breakdown, report_scans_and_fcl, rotations,
-                      write_scene)
+from scalelib import (
+    ScanEnv,
+    accept_continuous,
+    accept_discrete_fcl,
+    accept_workers,
+    acceptance,
+    env_note,
+    fcl_pair_loop,
+    interleaved_scans,
+    poses_from,
+    print_breakdown,
+    report_scans_and_fcl,
+    rotations,
+    write_scene,
+)
 
 from collide.load import load_mesh
 

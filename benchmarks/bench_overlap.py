@@ -27,9 +27,19 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
-from benchlib import (fcl_frame_loop, fcl_objects, frame_pairs, machine_load, median, parse_workers, print_table,
-                      ratio, read_poses, run_scan, thread_headroom)
+from benchlib import (
+    fcl_frame_loop,
+    fcl_objects,
+    frame_pairs,
+    machine_load,
+    median,
+    parse_workers,
+    print_table,
+    ratio,
+    read_poses,
+    run_scan,
+    thread_headroom,
+)
 
 import collide
 from collide.discrete import scan_frames

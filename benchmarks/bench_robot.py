@@ -39,9 +39,21 @@ from pathlib import Path
 from typing import NamedTuple
 
 import h5py
-
-from benchlib import (contact_pairs, fcl_frame_loop, fcl_objects, frame_pairs, machine_load, median,
-                      parse_workers, print_table, ratio, read_poses, run_cli, run_scan, thread_headroom)
+from benchlib import (
+    contact_pairs,
+    fcl_frame_loop,
+    fcl_objects,
+    frame_pairs,
+    machine_load,
+    median,
+    parse_workers,
+    print_table,
+    ratio,
+    read_poses,
+    run_cli,
+    run_scan,
+    thread_headroom,
+)
 from robot_cell import STATIC_PAIRS_THAT_TOUCH, write_cell
 
 from collide.load import load_mesh

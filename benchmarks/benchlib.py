@@ -24,8 +24,9 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-import collide  # noqa: E402
 from fcl_poses import fcl_model  # noqa: E402
+
+import collide  # noqa: E402
 
 
 def collide_command():

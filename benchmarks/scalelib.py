@@ -21,7 +21,6 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-
 from benchlib import fcl_model, machine_load, median, ratio, run_scan
 
 WORK = ("object_pairs", "node_pairs", "leaf_pairs", "triangle_pairs", "ccd_pairs", "ccd_queries", "box_checks",

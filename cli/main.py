@@ -314,7 +314,8 @@ def cli():
               help=f"Max triangles per BVH leaf [default: {config.DEFAULT_LEAF_SIZE}].")
 @click.option("--triangle-pairs", is_flag=True, help="Also write every intersecting triangle pair "
                                                     "at every frame (/triangle_pairs).")
-@click.option("--frames", default=None, metavar="START:STOP", help="Analyse a frame range (Python slice); only its frames are read.")
+@click.option("--frames", default=None, metavar="START:STOP",
+              help="Analyse a frame range (Python slice); only its frames are read.")
 @click.option("--fail-on-contact", is_flag=True, help="Exit 1 if any contact is found (for CI).")
 @click.option("--workers", type=click.IntRange(min=1, max=config.MAX_WORKERS), default=None,
               help="Local parallelism (threads) [default: all cores].")

@@ -78,7 +78,7 @@ def test_barycentric_of_origin():
     lam = barycentric_of_origin([(5, 0, 0), (0, 7, 0), (0, 0, 2), (-1, -1, -1)])
     assert sum(lam) == 1 and all(lam)  # origin = combination, check it reconstructs
     pts = [(5, 0, 0), (0, 7, 0), (0, 0, 2), (-1, -1, -1)]
-    assert all(sum(l * p[k] for l, p in zip(lam, pts)) == 0 for k in range(3))
+    assert all(sum(w * p[k] for w, p in zip(lam, pts)) == 0 for k in range(3))
 
 
 def test_rejects_bad_input():

@@ -253,17 +253,45 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
             contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
-def _run_swept(ps, poses, static, filters, interpolation, time_tol, dist_tol, workers, progress, scheduler=None):
+def _run_swept(ps, poses, static, filters, both_ends, interpolation, time_tol, dist_tol, workers, progress,
+               scheduler=None):
     """Swept contacts (ids (R, SWEPT_WIDTH), fractions (R, TIMES_WIDTH); rows.py) of every
-    motion step and work counts (static pairs excluded: they never move)."""
+    motion step and work counts (static pairs excluded: they never move; so are the
+    pairs of ``both_ends``, see _touching_at_both_ends)."""
     n_steps = poses.shape[0] - 1
     if n_steps < 1:
         return np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), np.zeros(COUNT_WIDTH, np.int64)
-    results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
+    results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static), both_ends),
                           (INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
                           scheduler)
     return (np.concatenate([r[0] for r in results]).reshape(-1, SWEPT_WIDTH),
             np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[2] for r in results]))
+
+
+def _touching_at_both_ends(hits, static, n_objects):
+    """Steps whose contact window the frame tests already give: an object pair touching
+    at both frames of a step touches from its start to its end (a step's window runs
+    from its earliest to its latest contact), so the swept test can skip it.
+
+    hits int64 (H, HIT_WIDTH). Returns (keys, ids, fractions): keys int64 sorted
+    (swept.step_pair_key of each such step and pair, for scan_intervals), and their
+    swept contacts (rows.py), the whole step, with the triangle pair of the step's
+    first frame. Pairs of static objects are left to _static_steps.
+    """
+    frame, a, b = hits[:, HIT_FRAME], hits[:, HIT_A], hits[:, HIT_B]
+    moving = ~(static[a] & static[b])
+    per_frame = (frame * n_objects + a) * n_objects + b   # = step_pair_key(frame, a, b)
+    keys, first = np.unique(per_frame[moving], return_index=True)
+    # keys[i] is frame k's; keys[i] + N^2 is frame k + 1's: both present -> step k
+    both = np.isin(keys + n_objects * n_objects, keys, assume_unique=True)
+    rows = hits[np.flatnonzero(moving)[first[both]]]
+    ids = np.zeros((rows.shape[0], SWEPT_WIDTH), np.int64)
+    for column, source in ((SWEPT_STEP, HIT_FRAME), (SWEPT_A, HIT_A), (SWEPT_B, HIT_B), (SWEPT_TRI_A, HIT_TRI_A),
+                           (SWEPT_TRI_B, HIT_TRI_B)):
+        ids[:, column] = rows[:, source]
+    fractions = np.zeros((rows.shape[0], TIMES_WIDTH))
+    fractions[:, T_END] = 1.0
+    return np.ascontiguousarray(keys[both]), ids, fractions
 
 
 def _static_steps(hits, static, n_steps):
@@ -467,7 +495,8 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     pair_filter = filters.kernel_filter()
     scan_frames(ps, poses, static, pair_filter, 0, 0, False, True)
     if continuous:
-        scan_intervals(ps, poses, static, pair_filter, 0, 0, INTERPOLATIONS[interpolation], time_tol, dist_tol)
+        scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), 0, 0, INTERPOLATIONS[interpolation],
+                       time_tol, dist_tol)
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
 
@@ -531,12 +560,14 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
         hits, counts = _run_discrete(ps, poses, scene.static, filters, pair_sink, workers, work, scheduler)
         if continuous:
-            ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, interpolation, time_tol,
-                                                      dist_tol, workers, work, scheduler)
+            both_ends, whole_ids, whole_fractions = _touching_at_both_ends(hits, scene.static, poses.shape[1])
+            ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, both_ends, interpolation,
+                                                      time_tol, dist_tol, workers, work, scheduler)
             counts = counts + swept_counts
             static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
-            contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
-                                                   np.concatenate([fractions, static_fractions]), hits, frame_time)
+            contacts, where = intervals_from_steps(np.concatenate([ids, static_ids, whole_ids]),
+                                                   np.concatenate([fractions, static_fractions, whole_fractions]),
+                                                   hits, frame_time)
         else:
             contacts, where = intervals_from_hits(hits, frame_time)
         if not triangle_pairs:

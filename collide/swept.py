@@ -249,12 +249,27 @@ class Step(NamedTuple):
     pair: object        #: discrete.PairScratch
 
 
+@njit(cache=True)
+def step_pair_key(k, a, b, n_objects):
+    """int64 key of object pair (a, b) in step k, ordered by step, then a, then b."""
+    return (k * n_objects + a) * n_objects + b
+
+
+@njit(cache=True)
+def _touching_at_both_ends(both_ends, k, a, b, n_objects):
+    key = step_pair_key(k, a, b, n_objects)
+    i = np.searchsorted(both_ends, key)
+    return i < both_ends.shape[0] and both_ends[i] == key
+
+
 @njit(cache=True, nogil=True)
-def scan_intervals(ps, poses, static, pairs, step_start, step_stop, interpolation, time_tol, dist_tol):
+def scan_intervals(ps, poses, static, pairs, both_ends, step_start, step_stop, interpolation, time_tol, dist_tol):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
-    move); pairs: filters.PairFilter; interpolation: a motion.INTERPOLATIONS code;
+    move); pairs: filters.PairFilter; both_ends: int64 sorted step_pair_key of the
+    object pairs known to touch at both frames of a step (their window is the whole
+    step: they are skipped, the caller adds their rows); interpolation: a motion.INTERPOLATIONS code;
     time_tol in units of the step; dist_tol in length units. Returns (ids int64 (R,
     SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64 (COUNT_WIDTH,)), see the
     module docstring.
@@ -282,7 +297,7 @@ def scan_intervals(ps, poses, static, pairs, step_start, step_stop, interpolatio
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
-            if not pair_selected(pairs, a, b):
+            if not pair_selected(pairs, a, b) or _touching_at_both_ends(both_ends, k, a, b, n_objects):
                 continue
             buffers, t_first, t_last, tri_a, tri_b = _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static,
                                                                   time_tol, dist_tol, state, buffers, counts)

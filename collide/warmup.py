@@ -164,8 +164,10 @@ def _scan_frames(ps, poses, static, pairs):
 
 
 def _scan_intervals(ps, poses, static, pairs):
+    import numpy as np
+
     from .swept import scan_intervals
-    scan_intervals(ps, poses, static, pairs, 0, 0, 1, 1e-6, 1e-9)
+    scan_intervals(ps, poses, static, pairs, np.zeros(0, np.int64), 0, 0, 1, 1e-6, 1e-9)
 
 
 def _bvh(ps, poses, static, pairs):

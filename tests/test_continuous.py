@@ -109,3 +109,60 @@ def test_time_tol_option_changes_the_precision(tmp_path):
                          "cube", [[0, 0, -4.0], [0, 0, 4.0]], [0.0, 1.0])
     c = collide.scan(meshes, traj, time_tol=1e-3).contacts
     check_interval(c, 0, 0.4765625, 0.5234375, dt=1.0, time_tol=1e-3)
+
+
+def _without_both_ends_shortcut(monkeypatch):
+    """Make scan search every step of every pair, as if no pair touched at both ends."""
+    from collide import pipeline
+    original = pipeline._touching_at_both_ends
+
+    def nothing_known(hits, static, n_objects):
+        keys, ids, fractions = original(hits, static, n_objects)
+        return keys[:0], ids[:0], fractions[:0]
+    monkeypatch.setattr(pipeline, "_touching_at_both_ends", nothing_known)
+
+
+def test_pairs_touching_at_both_ends_of_a_step_skip_the_search_with_the_same_contacts(tmp_path, monkeypatch):
+    """A box slides along a bar that bounces and turns, and the bar hits a post: contacts
+    lasting several frames each (five intervals). The contacts equal those of the full
+    certified search of every step, with less work."""
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    write_box(meshes / "bar.stl", extents=(4.0, 0.5, 0.5))
+    write_box(meshes / "box.stl", extents=(0.5, 0.5, 0.5))
+    write_box(meshes / "post.stl", extents=(0.25, 0.25, 2.0), centre=(0.0, 1.5, 0.0))
+    n = 40
+    t = np.arange(n) * 0.05
+    position = np.zeros((n, 2, 3))
+    position[:, 0, 0] = np.linspace(-1.5, 1.5, n)          # box slides along the bar, overlapping it
+    position[:, 0, 1] = 0.4
+    position[:, 1, 1] = 1.2 + 0.6 * np.sin(7.0 * t)       # bar bounces against the post
+    orientation = identity_quaternions(n, 2)
+    angle = 0.3 * np.sin(3.0 * t)                            # the bar turns about z
+    orientation[:, 1, 0] = np.cos(angle / 2)
+    orientation[:, 1, 3] = np.sin(angle / 2)
+    traj = write_trajectory(tmp_path / "traj.h5", t, ["box", "bar"], position, orientation)
+    fast = collide.scan(meshes, traj, mode="continuous")
+    with monkeypatch.context() as patch:
+        _without_both_ends_shortcut(patch)
+        full = collide.scan(meshes, traj, mode="continuous")
+    assert fast.contacts["object_a"].size > 0
+    for name, column in full.contacts.items():
+        np.testing.assert_array_equal(fast.contacts[name], column, err_msg=name)
+    assert fast.stats["work"]["ccd_queries"] < full.stats["work"]["ccd_queries"]
+
+
+def test_steps_touching_at_both_ends_are_found_from_frame_hits():
+    from collide.pipeline import _touching_at_both_ends
+    from collide.rows import HIT_WIDTH
+    from collide.swept import step_pair_key
+    # (frame, a, b): pair (0, 1) at frames 0, 1, 2 and 4; pair (1, 2) at 1 and 2; static pair (2, 3) always
+    found = [(0, 0, 1), (1, 0, 1), (2, 0, 1), (4, 0, 1), (1, 1, 2), (2, 1, 2)] + [(f, 2, 3) for f in range(5)]
+    hits = np.zeros((len(found), HIT_WIDTH), np.int64)
+    hits[:, :3] = found
+    static = np.array([False, False, True, True])
+    keys, ids, fractions = _touching_at_both_ends(hits, static, 4)
+    expected = sorted(step_pair_key(k, a, b, 4) for k, a, b in [(0, 0, 1), (1, 0, 1), (1, 1, 2)])
+    assert keys.tolist() == expected
+    assert sorted(map(tuple, ids[:, :3].tolist())) == [(0, 0, 1), (1, 0, 1), (1, 1, 2)]
+    assert (fractions[:, 0] == 0).all() and (fractions[:, 1] == 1).all()

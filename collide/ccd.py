@@ -107,6 +107,8 @@ Domain: the certified point of a vertex-face box satisfies fl(u_c + v_c) <= 1, s
 u_c + v_c <= 1 + 2^-53; moving it into the triangle changes F by at most 4 u m,
 covered by the slack between 2 delta + 51 u m and 3 delta.
 """
+from typing import NamedTuple
+
 import numpy as np
 
 from .jit import njit, prange
@@ -135,6 +137,30 @@ MAX_COORDINATE = 1e150
 # A box is a heap row: t_lo, t_hi, u_lo, u_hi, v_lo, v_hi, depth. Corner c of a box
 # has t = t_hi if bit 0 of c is set (else t_lo), u = u_hi if bit 1, v = v_hi if bit 2.
 _ROW = 7
+
+
+class CCDWork(NamedTuple):
+    """Scratch buffers of the CCD queries, made once (ccd_work) and reused by every query
+    of a caller: a query then allocates nothing."""
+    x0: np.ndarray       #: float64 (4, 3): a query's rows at t = 0
+    x1: np.ndarray       #: float64 (4, 3): and at t = 1
+    heap: np.ndarray     #: float64 (HEAP_SIZE, _ROW): live boxes
+    box: np.ndarray      #: float64 (_ROW,): the box being checked
+    corners: np.ndarray  #: float64 (8, 3): F at its corners
+    scratch: np.ndarray  #: float64 (8, 3)
+    clipped: np.ndarray  #: float64 (10, 3): F at the corners of its part inside the triangle
+    dirs: np.ndarray     #: float64 (6, 3): separating directions
+    bounds: np.ndarray   #: float64 (6,)
+    proj: np.ndarray     #: float64 (6, 8)
+    counts: np.ndarray   #: int64 (COUNT_WIDTH,): counters for callers that keep none
+
+
+@njit(cache=True)
+def ccd_work():
+    """A fresh CCDWork."""
+    return CCDWork(np.empty((4, 3)), np.empty((4, 3)), np.empty((HEAP_SIZE, _ROW)), np.empty(_ROW),
+                   np.empty((8, 3)), np.empty((8, 3)), np.empty((10, 3)), np.empty((6, 3)), np.empty(6),
+                   np.empty((6, 8)), np.zeros(COUNT_WIDTH, np.int64))
 
 
 # --- F and its rounding bound -----------------------------------------------------------------
@@ -631,17 +657,18 @@ def _heap_pop(heap, n, out):
 # --- the search -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, counts):
+def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, work, counts):
     """Best-first box search (module docstring); returns the conservative toi, or inf
-    when there is no contact at all or none before t_max. counts: rows.COUNT_* (int64)."""
-    heap = np.empty((HEAP_SIZE, _ROW))
-    corners = np.empty((8, 3))
-    scratch = np.empty((8, 3))
-    clipped = np.empty((10, 3))
-    dirs = np.empty((6, 3))
-    bounds = np.empty(6)
-    proj = np.empty((6, 8))
-    box = np.empty(_ROW)
+    when there is no contact at all or none before t_max. work: CCDWork (its search
+    buffers); counts: rows.COUNT_* (int64)."""
+    heap = work.heap
+    corners = work.corners
+    scratch = work.scratch
+    clipped = work.clipped
+    dirs = work.dirs
+    bounds = work.bounds
+    proj = work.proj
+    box = work.box
     heap[0, :] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0)
     n = np.int64(1)
     checks = 0
@@ -684,24 +711,26 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
 
 
 @njit(cache=True)
-def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, counts):
+def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
     """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE),
     as vertex_face_toi_kernel / edge_edge_toi_kernel, except that inf may also mean
     "no contact at or before t_max" (for callers that only need a minimum: a triangle
-    pair's first contact over its 15 queries). counts: int64 rows.COUNT_* counters."""
+    pair's first contact over its 15 queries). work: CCDWork scratch (x_t0 and x_t1
+    may be its x0 and x1); counts: int64 rows.COUNT_* counters."""
     delta = _rounding_bound(x_t0, x_t1)
     tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
     if _root_excluded(kind, x_t0, x_t1, tol_out):
         return np.inf  # the common case: no allocation at all
     counts[COUNT_CCD_QUERIES] += 1
     tol_in = (tol_out[0] + delta[0], tol_out[1] + delta[1], tol_out[2] + delta[2])
-    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, counts)
+    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, work, counts)
 
 
 @njit(cache=True)
 def _toi(kind, x_t0, x_t1, time_tol, dist_tol):
     """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE)."""
-    return toi_before(kind, x_t0, x_t1, time_tol, dist_tol, np.inf, np.zeros(COUNT_WIDTH, np.int64))
+    work = ccd_work()
+    return toi_before(kind, x_t0, x_t1, time_tol, dist_tol, np.inf, work, work.counts)
 
 
 @njit(cache=True)
@@ -729,7 +758,7 @@ def edge_edge_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
 # --- a pair of moving triangles -------------------------------------------------------------
 
 @njit(cache=True)
-def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts):
+def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
     """Earliest time in [0, 1] at which moving triangles p and q touch, inf if never.
 
     p0, p1, q0, q1: (3, 3) vertex positions at t = 0 and t = 1 (linear motion).
@@ -739,10 +768,12 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
     time, at most time_tol earlier); each query only searches up to the best
     time found so far, and never beyond t_max: an answer after t_max may come
     back as inf (for callers that only need a minimum). Triangles already
-    intersecting at t = 0 (decided exactly) give 0. x0, x1: (4, 3) scratch buffers;
-    counts: int64 rows.COUNT_* counters.
+    intersecting at t = 0 (decided exactly) give 0. work: CCDWork scratch; counts:
+    int64 rows.COUNT_* counters.
     """
     counts[COUNT_CCD_PAIRS] += 1
+    x0 = work.x0
+    x1 = work.x1
     if triangles_intersect(p0, q0):
         return 0.0
     # np.int64: the query code is compiled once for both kinds, not once per literal kind
@@ -757,7 +788,8 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
                 for r in range(3):
                     x0[r + 1, c] = other0[r, c]
                     x1[r + 1, c] = other1[r, c]
-            best = min(best, toi_before(vertex_face, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
+            best = min(best, toi_before(vertex_face, x0, x1, time_tol, dist_tol, min(best, t_max), work,
+                                        counts))
             if best == 0.0:
                 return 0.0
     for i in range(3):  # edge i of p against edge j of q
@@ -771,7 +803,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
                 x1[1, c] = p1[(i + 1) % 3, c]
                 x1[2, c] = q1[j, c]
                 x1[3, c] = q1[(j + 1) % 3, c]
-            best = min(best, toi_before(edge_edge, x0, x1, time_tol, dist_tol, min(best, t_max), counts))
+            best = min(best, toi_before(edge_edge, x0, x1, time_tol, dist_tol, min(best, t_max), work, counts))
             if best == 0.0:
                 return 0.0
     return best
@@ -781,11 +813,20 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, x0, x1, counts)
 
 @njit(cache=True, parallel=True)
 def _toi_batch(kind, x_t0, x_t1, time_tol, dist_tol):
-    """float64 (n,) times of the n queries x_t0[i], x_t1[i] (each (4, 3))."""
-    out = np.empty(x_t0.shape[0])
-    for i in prange(x_t0.shape[0]):
-        out[i] = _toi(kind, x_t0[i], x_t1[i], time_tol, dist_tol)
+    """float64 (n,) times of the n queries x_t0[i], x_t1[i] (each (4, 3)), in blocks that
+    share one CCDWork."""
+    n = x_t0.shape[0]
+    out = np.empty(n)
+    n_blocks = (n + _BATCH_BLOCK - 1) // _BATCH_BLOCK
+    for block in prange(n_blocks):
+        work = ccd_work()
+        for i in range(block * _BATCH_BLOCK, min(n, (block + 1) * _BATCH_BLOCK)):
+            out[i] = toi_before(kind, x_t0[i], x_t1[i], time_tol, dist_tol, np.inf, work, work.counts)
     return out
+
+
+#: queries per block of the batched API (one scratch allocation per block)
+_BATCH_BLOCK = 256
 
 
 def _as_queries(x, name):

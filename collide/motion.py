@@ -405,16 +405,14 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
     of the true one. p0, p1, q0, q1: (3, 3) world corners at t = 0 and t = 1; m_p,
     m_q their motion rows; dev: the sum of both triangles' deviation bounds over the
     whole step (length units, point_deviation), eta the sum of their rounding margins.
-    time_tol: fraction of the step; dist_tol: length units. work: (2, 4, 3) scratch.
+    time_tol: fraction of the step; dist_tol: length units. work: ccd.CCDWork scratch.
     With dev == 0 and eta == 0 (linear-vertex motion or pure translation) this is one
     linear CCD of the step. counts: int64 rows.COUNT_* counters.
     """
     if dev == 0.0 and eta == 0.0:
-        x0 = work[0]
-        x1 = work[1]
         if backwards:
-            return 1.0 - triangle_pair_toi(p1, p0, q1, q0, time_tol, dist_tol, 1.0 - limit, x0, x1, counts)
-        return triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, limit, x0, x1, counts)
+            return 1.0 - triangle_pair_toi(p1, p0, q1, q0, time_tol, dist_tol, 1.0 - limit, work, counts)
+        return triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, limit, work, counts)
     t = _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts)
     return -np.inf if backwards and t == np.inf else t
 
@@ -443,8 +441,6 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
     qa = np.empty((3, 3))
     pb = np.empty((3, 3))
     qb = np.empty((3, 3))
-    x0 = work[0]
-    x1 = work[1]
     stack = np.empty((128, 2))  # sub-steps [a, b] still to search; the top one comes first in time
     stack[0, 0] = 0.0
     stack[0, 1] = 1.0
@@ -473,9 +469,9 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
         # the limit in units of the sub-step, rounded outward
         sub_limit = ((b - limit) if backwards else (limit - a)) / max(h, MIN_SUBSTEP) * (1.0 + 2.0 ** -50)
         if backwards:
-            tau = triangle_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, x0, x1, counts)
+            tau = triangle_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, work, counts)
         else:
-            tau = triangle_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, x0, x1, counts)
+            tau = triangle_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, work, counts)
         if tau == np.inf:
             continue
         # no contact in [a, t) (forwards) or (t, b] (backwards); t rounded outward

@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .ccd import ccd_work
 from .jit import njit
 from .motion import M_ETA, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
@@ -190,7 +191,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
                                       face_base_b, world0, world1, world_base_a, world_base_b,
                                       motion_a, motion_b, dist_tol, candidates, counts)
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
-    work = np.empty((2, 4, 3))
+    work = ccd_work()
     t_first = np.inf
     best_a = -1
     best_b = -1
@@ -220,7 +221,7 @@ def _candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, wo
                        world_base_b, motion_a, motion_b, time_tol, dist_tol, limit, backwards, corners, work,
                        counts):
     """motion.triangle_pair_contact of triangles tri_a of A and tri_b of B; corners (4, 3, 3)
-    and work (2, 4, 3) scratch."""
+    and work (ccd.CCDWork) scratch."""
     p0 = corners[0]
     p1 = corners[1]
     q0 = corners[2]

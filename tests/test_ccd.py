@@ -492,12 +492,12 @@ def test_triangle_level_times_contain_every_sampled_contact():
     """Integration with collide.narrow: dense sampling may miss contacts, never invent them:
     every sampled time at which the moving triangles intersect (exact static test) lies in
     [first contact, last contact]."""
-    from collide.ccd import triangle_pair_toi
+    from collide.ccd import ccd_work, triangle_pair_toi
     from collide.predicates import triangles_intersect
     from collide.rows import COUNT_WIDTH
 
     rng = np.random.default_rng(7)
-    x0, x1 = np.empty((4, 3)), np.empty((4, 3))
+    work = ccd_work()
     counts = np.zeros(COUNT_WIDTH, np.int64)
     samples = np.linspace(0.0, 1.0, 401)
     seen = 0
@@ -505,8 +505,8 @@ def test_triangle_level_times_contain_every_sampled_contact():
         p0, q0 = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
         p1 = p0 + rng.normal(size=3) * 1.5 + rng.normal(size=(3, 3)) * 0.2
         q1 = q0 + rng.normal(size=3) * 1.5
-        first = triangle_pair_toi(p0, p1, q0, q1, TOL, 0.0, np.inf, x0, x1, counts)
-        last = 1.0 - triangle_pair_toi(p1, p0, q1, q0, TOL, 0.0, np.inf, x0, x1, counts)
+        first = triangle_pair_toi(p0, p1, q0, q1, TOL, 0.0, np.inf, work, counts)
+        last = 1.0 - triangle_pair_toi(p1, p0, q1, q0, TOL, 0.0, np.inf, work, counts)
         touching = [t for t in samples if triangles_intersect(
             np.ascontiguousarray(p0 + t * (p1 - p0)), np.ascontiguousarray(q0 + t * (q1 - q0)))]
         if touching:

@@ -6,14 +6,17 @@ object's root box in the world, sweeps and prunes to candidate object pairs,
 skips the pairs the filter excludes (filters.PairFilter), descends each pair's
 BVHs (broad.overlapping_leaves with RULE_POSE) and tests triangle pairs exactly
 (narrow.intersecting_triangles). When only a yes/no answer per pair is needed
-(``first_only``), the descent hands over its leaf pairs a few at a time and
-stops at the first intersecting triangle pair.
+(``first_only``), the triangle pair that touched at the previous frame (motion is
+coherent: it usually still does) is tested first, and otherwise the descent hands
+over its leaf pairs a few at a time and stops at the first intersecting triangle
+pair.
 
 Output rows (int64, layouts in rows.py):
 - hits (H, HIT_WIDTH): frame, object_a, object_b, number of intersecting
   triangle pairs, tri_a, tri_b (the lexicographically smallest intersecting
   pair). With ``first_only`` a pair's search stops at its first intersecting
-  triangle pair: the count is then 1 and (tri_a, tri_b) that first pair.
+  triangle pair: the count is then 1 and (tri_a, tri_b) that pair (which one
+  depends on the frames before it in the chunk).
 - pairs (P, PAIR_WIDTH): frame, object_a, object_b, tri_a, tri_b (only when
   collected).
 - counts (COUNT_WIDTH,): work done (rows.COUNT_*).
@@ -27,9 +30,11 @@ from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune
 from .filters import pair_selected
 from .jit import njit
 from .motion import MOTION_WIDTH, swept_box
-from .narrow import Placed, append_row, intersecting_triangles
+from .narrow import Placed, append_row, intersecting_triangles, placed_triangle, triangle_boxes_overlap
+from .predicates import triangles_intersect
 from .rows import (
     COUNT_OBJECT_PAIRS,
+    COUNT_TRIANGLE_PAIRS,
     COUNT_WIDTH,
     HIT_A,
     HIT_B,
@@ -159,6 +164,37 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
     return stack, leaves, tri, n_tri
 
 
+@njit(cache=True)
+def _still_touching(ps, rp, f, a, b, static, stamp, world, previous_keys, previous_tris, key, p, q, tri, counts):
+    """Whether the triangle pair objects a and b touched through at the previous frame
+    (previous_keys: sorted a * N + b of its hits, previous_tris (K, 2) their pairs) still
+    intersects at frame f; if so it is tri[0]. p, q: (3, 3) scratch."""
+    i = np.searchsorted(previous_keys, key)
+    if i == previous_keys.shape[0] or previous_keys[i] != key:
+        return False
+    counts[COUNT_OBJECT_PAIRS] += 1
+    counts[COUNT_TRIANGLE_PAIRS] += 1
+    placed_triangle(_placed(ps, rp, a, f, static, stamp, world), previous_tris[i, 0], p)
+    placed_triangle(_placed(ps, rp, b, f, static, stamp, world), previous_tris[i, 1], q)
+    if not (triangle_boxes_overlap(p, q) and triangles_intersect(p, q)):
+        return False
+    tri[0, 0] = previous_tris[i, 0]
+    tri[0, 1] = previous_tris[i, 1]
+    return True
+
+
+@njit(cache=True)
+def _frame_keys(hits, start, stop, n_objects):
+    """Sorted keys a * N + b of hits[start:stop] (one frame's) and their triangle pairs."""
+    keys = hits[start:stop, HIT_A] * n_objects + hits[start:stop, HIT_B]
+    order = np.argsort(keys)
+    tris = np.empty((stop - start, 2), np.int64)
+    for k in range(stop - start):
+        tris[k, 0] = hits[start + order[k], HIT_TRI_A]
+        tris[k, 1] = hits[start + order[k], HIT_TRI_B]
+    return keys[order], tris
+
+
 @njit(cache=True, nogil=True)
 def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs, first_only):
     """Discrete scan of frames [frame_start, frame_stop).
@@ -184,7 +220,12 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
     still = np.zeros((n_objects, MOTION_WIDTH))
     hit = np.empty(HIT_WIDTH, np.int64)
     row = np.empty(PAIR_WIDTH, np.int64)
+    p = np.empty((3, 3))
+    q = np.empty((3, 3))
+    previous_keys = np.zeros(0, np.int64)
+    previous_tris = np.zeros((0, 2), np.int64)
     for f in range(frame_start, frame_stop):
+        frame_hits = n_hits
         rp = poses[f]
         object_margins(ps, rp, rp, margin)
         lo, hi = object_world_boxes(ps, rp, rp, still, 0.0, margin)
@@ -194,9 +235,13 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
             b = candidates[c, 1]
             if not pair_selected(pairs, a, b):
                 continue
-            stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
-                                                        stamp, world, first_only, scratch, stack, leaves, tri,
-                                                        counts)
+            if first_only and _still_touching(ps, rp, f, a, b, static, stamp, world, previous_keys, previous_tris,
+                                              a * n_objects + b, p, q, tri, counts):
+                n_tri = np.int64(1)
+            else:
+                stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
+                                                            stamp, world, first_only, scratch, stack, leaves, tri,
+                                                            counts)
             if n_tri == 0:
                 continue
             tri_a, tri_b = _smallest_pair(tri, n_tri)
@@ -215,4 +260,6 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
                     row[PAIR_TRI_A] = tri[k, 0]
                     row[PAIR_TRI_B] = tri[k, 1]
                     found, n_found = append_row(found, n_found, row)
+        if first_only:
+            previous_keys, previous_tris = _frame_keys(hits, frame_hits, n_hits, n_objects)
     return hits[:n_hits].copy(), found[:n_found].copy(), counts

@@ -58,7 +58,7 @@ def placed_triangle(obj, face, out):
 
 
 @njit(cache=True)
-def _triangle_boxes_overlap(p, q):
+def triangle_boxes_overlap(p, q):
     """Exact AABB test of two triangles (min/max of the same floats)."""
     for c in range(3):
         if max(p[0, c], p[1, c], p[2, c]) < min(q[0, c], q[1, c], q[2, c]):
@@ -104,7 +104,7 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
                 tri_b = prim_ids[ib]
                 placed_triangle(obj_b, tri_b, q)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
-                if _triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
+                if triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
                     row[0] = tri_a
                     row[1] = tri_b
                     out, n_out = append_row(out, n_out, row)
@@ -173,7 +173,7 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
 @njit(cache=True)
 def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
                          world0, world1, world_base_a, world_base_b, motion_a, motion_b,
-                         time_tol, dist_tol, find_first, candidates, counts):
+                         time_tol, dist_tol, find_first, find_last, candidates, counts):
     """When two objects touch during one step, from the triangles of their leaf pairs.
 
     Returns (candidates, t_first, t_last, tri_a, tri_b): the earliest contact of any
@@ -184,7 +184,8 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     (the step is the resolution of gaps). Every triangle pair's search only looks
     for contacts that could still move t_first (or t_last), so most pairs stop early.
     With find_first False only t_last is searched (t_first stays inf, t_last is -inf
-    when none touches). candidates: int64 (cap, 2) scratch, grown and returned;
+    when none touches); with find_last False only t_first (t_last is returned as
+    t_first: the caller knows better). candidates: int64 (cap, 2) scratch, grown and returned;
     counts: int64 rows.COUNT_* counters.
     """
     candidates, n = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
@@ -206,7 +207,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
             if t_first == 0.0:
                 break
     t_last = t_first if find_first else -np.inf  # the last contact is no earlier than the first
-    for k in range(n):
+    for k in range(n if find_last else 0):
         if (find_first and t_first == np.inf) or t_last == 1.0:
             break
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,

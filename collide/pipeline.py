@@ -253,45 +253,39 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
             contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
 
 
-def _run_swept(ps, poses, static, filters, both_ends, interpolation, time_tol, dist_tol, workers, progress,
+def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_tol, workers, progress,
                scheduler=None):
     """Swept contacts (ids (R, SWEPT_WIDTH), fractions (R, TIMES_WIDTH); rows.py) of every
-    motion step and work counts (static pairs excluded: they never move; so are the
-    pairs of ``both_ends``, see _touching_at_both_ends)."""
+    motion step and work counts (static pairs excluded: they never move). The frame
+    contacts ``hits`` (H, HIT_WIDTH) tell which ends of a step are known to touch."""
     n_steps = poses.shape[0] - 1
     if n_steps < 1:
         return np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), np.zeros(COUNT_WIDTH, np.int64)
-    results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static), both_ends),
+    touching, touching_tris = frame_contacts(hits, static, poses.shape[1])
+    results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static), touching,
+                                           touching_tris),
                           (INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
                           scheduler)
     return (np.concatenate([r[0] for r in results]).reshape(-1, SWEPT_WIDTH),
             np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[2] for r in results]))
 
 
-def _touching_at_both_ends(hits, static, n_objects):
-    """Steps whose contact window the frame tests already give: an object pair touching
-    at both frames of a step touches from its start to its end (a step's window runs
-    from its earliest to its latest contact), so the swept test can skip it.
+def frame_contacts(hits, static, n_objects):
+    """What the frame tests found, as scan_intervals looks it up: an object pair touching
+    at both frames of a step touches over the whole step (a step's window runs from its
+    earliest to its latest contact), one touching at one frame needs only the other
+    end searched.
 
-    hits int64 (H, HIT_WIDTH). Returns (keys, ids, fractions): keys int64 sorted
-    (swept.step_pair_key of each such step and pair, for scan_intervals), and their
-    swept contacts (rows.py), the whole step, with the triangle pair of the step's
-    first frame. Pairs of static objects are left to _static_steps.
+    hits int64 (H, HIT_WIDTH). Returns (keys, tris): keys int64 (K,) sorted
+    swept.step_pair_key(frame, a, b) of the frame contacts of pairs not both static,
+    tris int64 (K, 2) the triangle pair of each.
     """
     frame, a, b = hits[:, HIT_FRAME], hits[:, HIT_A], hits[:, HIT_B]
-    moving = ~(static[a] & static[b])
-    per_frame = (frame * n_objects + a) * n_objects + b   # = step_pair_key(frame, a, b)
-    keys, first = np.unique(per_frame[moving], return_index=True)
-    # keys[i] is frame k's; keys[i] + N^2 is frame k + 1's: both present -> step k
-    both = np.isin(keys + n_objects * n_objects, keys, assume_unique=True)
-    rows = hits[np.flatnonzero(moving)[first[both]]]
-    ids = np.zeros((rows.shape[0], SWEPT_WIDTH), np.int64)
-    for column, source in ((SWEPT_STEP, HIT_FRAME), (SWEPT_A, HIT_A), (SWEPT_B, HIT_B), (SWEPT_TRI_A, HIT_TRI_A),
-                           (SWEPT_TRI_B, HIT_TRI_B)):
-        ids[:, column] = rows[:, source]
-    fractions = np.zeros((rows.shape[0], TIMES_WIDTH))
-    fractions[:, T_END] = 1.0
-    return np.ascontiguousarray(keys[both]), ids, fractions
+    moving = np.flatnonzero(~(static[a] & static[b]))
+    keys, first = np.unique((frame[moving] * n_objects + a[moving]) * n_objects + b[moving], return_index=True)
+    rows = hits[moving[first]]
+    return (np.ascontiguousarray(keys, dtype=np.int64),
+            np.ascontiguousarray(rows[:, [HIT_TRI_A, HIT_TRI_B]], dtype=np.int64))
 
 
 def _static_steps(hits, static, n_steps):
@@ -495,8 +489,8 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     pair_filter = filters.kernel_filter()
     scan_frames(ps, poses, static, pair_filter, 0, 0, False, True)
     if continuous:
-        scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), 0, 0, INTERPOLATIONS[interpolation],
-                       time_tol, dist_tol)
+        scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0,
+                       INTERPOLATIONS[interpolation], time_tol, dist_tol)
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
 
@@ -560,14 +554,12 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
         hits, counts = _run_discrete(ps, poses, scene.static, filters, pair_sink, workers, work, scheduler)
         if continuous:
-            both_ends, whole_ids, whole_fractions = _touching_at_both_ends(hits, scene.static, poses.shape[1])
-            ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, both_ends, interpolation,
+            ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, hits, interpolation,
                                                       time_tol, dist_tol, workers, work, scheduler)
             counts = counts + swept_counts
             static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
-            contacts, where = intervals_from_steps(np.concatenate([ids, static_ids, whole_ids]),
-                                                   np.concatenate([fractions, static_fractions, whole_fractions]),
-                                                   hits, frame_time)
+            contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
+                                                   np.concatenate([fractions, static_fractions]), hits, frame_time)
         else:
             contacts, where = intervals_from_hits(hits, frame_time)
         if not triangle_pairs:

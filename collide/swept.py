@@ -127,8 +127,8 @@ def _sub_step_buffers(n_objects, n_world):
 
 
 @njit(cache=True)
-def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first, tri_pairs,
-            counts):
+def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first, find_last,
+            tri_pairs, counts):
     """narrow.swept_contact_window of objects a and b under motion rows (N, MOTION_WIDTH),
     with world vertices world0, world1 at both ends and their n_leaves overlapping leaf
     pairs."""
@@ -136,7 +136,7 @@ def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_t
         leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
         ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
         ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, find_first,
-        tri_pairs, counts)
+        find_last, tri_pairs, counts)
 
 
 @njit(cache=True)
@@ -164,7 +164,7 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
         to_world(body, sub.pose1[o], sub.world1, ps.world_start[o])
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, sub.motion, sub.world0, sub.world1, a, b, n_leaves,
                                                        leaves, time_tol * n_sub, dist_tol, find_first,
-                                                       buffers.tri_pairs, counts)
+                                                       np.bool_(True), buffers.tri_pairs, counts)
     return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
 
 
@@ -212,12 +212,15 @@ def _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, 
 
 
 @njit(cache=True)
-def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, state, buffers, counts):
+def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, touch0, touch1, state,
+                 buffers, counts):
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
-    (t_first = inf: no contact), whole or in sub-steps (motion.substeps). state: Step.
-    Returns (buffers, t_first, t_last, tri_a, tri_b)."""
+    (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
+    touch1: whether they touch at the step's first, last frame (then t_first = 0,
+    t_last = 1: only the other end is searched). state: Step. Returns (buffers,
+    t_first, t_last, tri_a, tri_b)."""
     pair_margin = margin[a] + margin[b] + dist_tol
-    if not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
+    if not (touch0 or touch1) and not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
         return buffers, np.inf, -np.inf, -1, -1
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
@@ -234,9 +237,30 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_t
         ensure_world(ps, rp0, o, k, static, state.stamp0, state.world0)
         ensure_world(ps, rp1, o, k + 1, static, state.stamp1, state.world1)
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
-                                                       leaves, time_tol, dist_tol, np.bool_(True), buffers.tri_pairs,
-                                                       counts)
+                                                       leaves, time_tol, dist_tol, np.bool_(not touch0),
+                                                       np.bool_(not touch1), buffers.tri_pairs, counts)
+    if touch0:  # never reached with touch1 too (scan_intervals writes that row itself)
+        t_first = 0.0
+        t_last = max(t_last, 0.0)
+    if touch1:
+        t_first = min(t_first, 1.0)
+        t_last = 1.0
     return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
+
+
+@njit(cache=True)
+def step_pair_key(k, a, b, n_objects):
+    """int64 key of object pair (a, b) at frame (or step) k, ordered by k, then a, then b."""
+    return (k * n_objects + a) * n_objects + b
+
+
+@njit(cache=True)
+def _touching_row(touching, k, a, b, n_objects):
+    """Row of ``touching`` (sorted step_pair_key of frame contacts) for pair (a, b) at frame
+    k, or -1."""
+    key = step_pair_key(k, a, b, n_objects)
+    i = np.searchsorted(touching, key)
+    return i if i < touching.shape[0] and touching[i] == key else -1
 
 
 class Step(NamedTuple):
@@ -249,27 +273,17 @@ class Step(NamedTuple):
     pair: object        #: discrete.PairScratch
 
 
-@njit(cache=True)
-def step_pair_key(k, a, b, n_objects):
-    """int64 key of object pair (a, b) in step k, ordered by step, then a, then b."""
-    return (k * n_objects + a) * n_objects + b
-
-
-@njit(cache=True)
-def _touching_at_both_ends(both_ends, k, a, b, n_objects):
-    key = step_pair_key(k, a, b, n_objects)
-    i = np.searchsorted(both_ends, key)
-    return i < both_ends.shape[0] and both_ends[i] == key
-
-
 @njit(cache=True, nogil=True)
-def scan_intervals(ps, poses, static, pairs, both_ends, step_start, step_stop, interpolation, time_tol, dist_tol):
+def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, interpolation, time_tol,
+                   dist_tol):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
-    move); pairs: filters.PairFilter; both_ends: int64 sorted step_pair_key of the
-    object pairs known to touch at both frames of a step (their window is the whole
-    step: they are skipped, the caller adds their rows); interpolation: a motion.INTERPOLATIONS code;
+    move); pairs: filters.PairFilter; touching: int64 sorted step_pair_key of the
+    object pairs the frame tests found touching, touching_tris int64 (H, 2) a
+    triangle pair of each (a pair touching at both frames of a step touches over the
+    whole step: no search; at one frame: only the other end is searched);
+    interpolation: a motion.INTERPOLATIONS code;
     time_tol in units of the step; dist_tol in length units. Returns (ids int64 (R,
     SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64 (COUNT_WIDTH,)), see the
     module docstring.
@@ -297,12 +311,20 @@ def scan_intervals(ps, poses, static, pairs, both_ends, step_start, step_stop, i
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
-            if not pair_selected(pairs, a, b) or _touching_at_both_ends(both_ends, k, a, b, n_objects):
+            if not pair_selected(pairs, a, b):
                 continue
-            buffers, t_first, t_last, tri_a, tri_b = _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static,
-                                                                  time_tol, dist_tol, state, buffers, counts)
-            if t_first == np.inf:
-                continue
+            row0 = _touching_row(touching, k, a, b, n_objects)
+            row1 = _touching_row(touching, k + 1, a, b, n_objects)
+            if row0 >= 0 and row1 >= 0:  # touching at both frames: the whole step
+                t_first, t_last, tri_a, tri_b = 0.0, 1.0, touching_tris[row0, 0], touching_tris[row0, 1]
+            else:
+                buffers, t_first, t_last, tri_a, tri_b = _pair_window(
+                    ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, np.bool_(row0 >= 0),
+                    np.bool_(row1 >= 0), state, buffers, counts)
+                if t_first == np.inf:
+                    continue
+                if row0 >= 0:
+                    tri_a, tri_b = touching_tris[row0, 0], touching_tris[row0, 1]
             id_row[SWEPT_STEP] = k
             id_row[SWEPT_A] = a
             id_row[SWEPT_B] = b

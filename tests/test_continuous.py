@@ -5,6 +5,7 @@ exact for the float64 inputs too. SPEC §3: t_begin <= exact <= t_begin + tol an
 t_end >= exact >= t_end - tol, with tol = time_tol * frame interval.
 """
 import numpy as np
+import pytest
 from conftest import identity_quaternions, write_box, write_trajectory
 
 import collide
@@ -111,21 +112,24 @@ def test_time_tol_option_changes_the_precision(tmp_path):
     check_interval(c, 0, 0.4765625, 0.5234375, dt=1.0, time_tol=1e-3)
 
 
-def _without_both_ends_shortcut(monkeypatch):
-    """Make scan search every step of every pair, as if no pair touched at both ends."""
+def _without_frame_contacts(monkeypatch):
+    """Make scan search every step of every pair in full, as if the frame tests had found
+    nothing."""
     from collide import pipeline
-    original = pipeline._touching_at_both_ends
+    original = pipeline.frame_contacts
 
     def nothing_known(hits, static, n_objects):
-        keys, ids, fractions = original(hits, static, n_objects)
-        return keys[:0], ids[:0], fractions[:0]
-    monkeypatch.setattr(pipeline, "_touching_at_both_ends", nothing_known)
+        keys, tris = original(hits, static, n_objects)
+        return keys[:0], tris[:0]
+    monkeypatch.setattr(pipeline, "frame_contacts", nothing_known)
 
 
-def test_pairs_touching_at_both_ends_of_a_step_skip_the_search_with_the_same_contacts(tmp_path, monkeypatch):
+@pytest.mark.parametrize("interpolation", ["screw", "linear-vertex"])
+def test_frame_contacts_spare_searches_with_the_same_contacts(tmp_path, monkeypatch, interpolation):
     """A box slides along a bar that bounces and turns, and the bar hits a post: contacts
-    lasting several frames each (five intervals). The contacts equal those of the full
-    certified search of every step, with less work."""
+    lasting several frames each (five intervals). Steps touching at both frames are not
+    searched, steps touching at one frame are searched for the other end only; the
+    contacts equal those of the full certified search of every step, with less work."""
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     write_box(meshes / "bar.stl", extents=(4.0, 0.5, 0.5))
@@ -142,27 +146,26 @@ def test_pairs_touching_at_both_ends_of_a_step_skip_the_search_with_the_same_con
     orientation[:, 1, 0] = np.cos(angle / 2)
     orientation[:, 1, 3] = np.sin(angle / 2)
     traj = write_trajectory(tmp_path / "traj.h5", t, ["box", "bar"], position, orientation)
-    fast = collide.scan(meshes, traj, mode="continuous")
+    fast = collide.scan(meshes, traj, mode="continuous", interpolation=interpolation)
     with monkeypatch.context() as patch:
-        _without_both_ends_shortcut(patch)
-        full = collide.scan(meshes, traj, mode="continuous")
-    assert fast.contacts["object_a"].size > 0
+        _without_frame_contacts(patch)
+        full = collide.scan(meshes, traj, mode="continuous", interpolation=interpolation)
+    assert fast.contacts["object_a"].size == 5
     for name, column in full.contacts.items():
         np.testing.assert_array_equal(fast.contacts[name], column, err_msg=name)
     assert fast.stats["work"]["ccd_queries"] < full.stats["work"]["ccd_queries"]
 
 
-def test_steps_touching_at_both_ends_are_found_from_frame_hits():
-    from collide.pipeline import _touching_at_both_ends
-    from collide.rows import HIT_WIDTH
+def test_frame_contacts_are_keyed_by_frame_and_pair():
+    from collide.pipeline import frame_contacts
+    from collide.rows import HIT_TRI_A, HIT_TRI_B, HIT_WIDTH
     from collide.swept import step_pair_key
-    # (frame, a, b): pair (0, 1) at frames 0, 1, 2 and 4; pair (1, 2) at 1 and 2; static pair (2, 3) always
-    found = [(0, 0, 1), (1, 0, 1), (2, 0, 1), (4, 0, 1), (1, 1, 2), (2, 1, 2)] + [(f, 2, 3) for f in range(5)]
+    # (frame, a, b): pair (0, 1) at frames 2, 0, 1 (unsorted), pair (1, 2) at frame 1; static pair (2, 3)
+    found = [(2, 0, 1), (0, 0, 1), (1, 0, 1), (1, 1, 2), (0, 2, 3), (1, 2, 3)]
     hits = np.zeros((len(found), HIT_WIDTH), np.int64)
     hits[:, :3] = found
-    static = np.array([False, False, True, True])
-    keys, ids, fractions = _touching_at_both_ends(hits, static, 4)
-    expected = sorted(step_pair_key(k, a, b, 4) for k, a, b in [(0, 0, 1), (1, 0, 1), (1, 1, 2)])
-    assert keys.tolist() == expected
-    assert sorted(map(tuple, ids[:, :3].tolist())) == [(0, 0, 1), (1, 0, 1), (1, 1, 2)]
-    assert (fractions[:, 0] == 0).all() and (fractions[:, 1] == 1).all()
+    hits[:, HIT_TRI_A] = np.arange(len(found))
+    hits[:, HIT_TRI_B] = 10 + np.arange(len(found))
+    keys, tris = frame_contacts(hits, np.array([False, False, True, True]), 4)
+    assert keys.tolist() == sorted(step_pair_key(k, a, b, 4) for k, a, b in found[:4])
+    assert tris.tolist() == [[1, 11], [2, 12], [3, 13], [0, 10]]

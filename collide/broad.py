@@ -109,6 +109,12 @@ def relative_pose(rp_a, rp_b):
 
 
 @njit(cache=True)
+def abs_rotation(rel):
+    """|R| + a small epsilon (3, 3) of rel = [R | t], for oriented_boxes_overlap."""
+    return np.abs(rel[:, :3]) + _ABS_R_EPS
+
+
+@njit(cache=True)
 def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
     """Box A (axis-aligned in A's frame) and box B (in B's frame, placed in A's
     frame by rel = [R | t]) overlap by the separating-axis test (15 axes).
@@ -179,7 +185,7 @@ def _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
 
 
 @njit(cache=True)
-def _half_area(lo, hi):
+def half_area(lo, hi):
     dx = hi[0] - lo[0]
     dy = hi[1] - lo[1]
     dz = hi[2] - lo[2]
@@ -202,7 +208,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     rows out[:k]. Node pairs are visited in a fixed order: results are deterministic.
     """
     rel = relative_pose(pose[0], pose[2])
-    abs_r = np.abs(rel[:, :3]) + _ABS_R_EPS
+    abs_r = abs_rotation(rel)
     k = np.int64(0)
     while top > 0 and k < max_out:
         top -= 1
@@ -223,7 +229,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
         if top + 2 > stack.shape[0]:
             stack = _grown(stack, top)
         # open the node that is not a leaf, or the larger of two inner nodes
-        if leaf_b or (not leaf_a and _half_area(lo[na], hi[na]) >= _half_area(lo[nb], hi[nb])):
+        if leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb])):
             child = first[na]
             stack[top, 0] = child + 1
             stack[top, 1] = nb

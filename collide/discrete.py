@@ -26,13 +26,22 @@ from typing import NamedTuple
 import numpy as np
 
 from . import config
-from .broad import RULE_POSE, overlapping_leaves, sweep_and_prune
+from .broad import (
+    RULE_POSE,
+    abs_rotation,
+    half_area,
+    oriented_boxes_overlap,
+    overlapping_leaves,
+    relative_pose,
+    sweep_and_prune,
+)
 from .filters import pair_selected
 from .jit import njit
 from .motion import MOTION_WIDTH, swept_box
 from .narrow import Placed, append_row, intersecting_triangles, placed_triangle, triangle_boxes_overlap
 from .predicates import triangles_intersect
 from .rows import (
+    COUNT_NODE_PAIRS,
     COUNT_OBJECT_PAIRS,
     COUNT_TRIANGLE_PAIRS,
     COUNT_WIDTH,
@@ -263,3 +272,115 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
         if first_only:
             previous_keys, previous_tris = _frame_keys(hits, frame_hits, n_hits, n_objects)
     return hits[:n_hits].copy(), found[:n_found].copy(), counts
+
+
+# --- the smallest touching triangle pair (what contacts report) ---------------------------------
+
+@njit(cache=True)
+def min_prim_ids(first, count, prim_ids):
+    """int64 (nodes,): the smallest primitive (mesh-local face) id under each node of the
+    packed BVHs (children come after their parent: one backward pass)."""
+    out = np.empty(first.shape[0], np.int64)
+    for node in range(first.shape[0] - 1, -1, -1):
+        if count[node] > 0:
+            smallest = prim_ids[first[node]]
+            for i in range(first[node] + 1, first[node] + count[node]):
+                smallest = min(smallest, prim_ids[i])
+            out[node] = smallest
+        else:
+            out[node] = min(out[first[node]], out[first[node] + 1])
+    return out
+
+
+@njit(cache=True)
+def _before(a0, b0, a1, b1):
+    """(a0, b0) < (a1, b1) lexicographically."""
+    return a0 < a1 or (a0 == a1 and b0 < b1)
+
+
+@njit(cache=True)
+def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, stack, counts):
+    """The lexicographically smallest intersecting triangle pair (tri_a, tri_b) of objects
+    a and b at frame f (pose rp (N, 3, 4)), or (-1, -1): a tandem descent that visits
+    node pairs in order of their smallest ids (min_prim, min_prim_ids) and skips those
+    that cannot hold a pair before the best one found. Returns (stack, tri_a, tri_b)."""
+    lo, hi, first, count, prim_ids = ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.prim_ids
+    rel = relative_pose(rp[a], rp[b])
+    abs_r = abs_rotation(rel)
+    obj_a = _placed(ps, rp, a, f, static, stamp, world)
+    obj_b = _placed(ps, rp, b, f, static, stamp, world)
+    p = np.empty((3, 3))
+    q = np.empty((3, 3))
+    best_a = np.iinfo(np.int64).max
+    best_b = np.iinfo(np.int64).max
+    stack[0, 0] = ps.root[ps.object_mesh[a]]
+    stack[0, 1] = ps.root[ps.object_mesh[b]]
+    top = 1
+    while top > 0:
+        top -= 1
+        na = stack[top, 0]
+        nb = stack[top, 1]
+        if not _before(min_prim[na], min_prim[nb], best_a, best_b):
+            continue
+        counts[COUNT_NODE_PAIRS] += 1
+        if not oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, abs_r, margin):
+            continue
+        leaf_a = count[na] > 0
+        leaf_b = count[nb] > 0
+        if leaf_a and leaf_b:
+            for ia in range(first[na], first[na] + count[na]):
+                tri_a = prim_ids[ia]
+                if tri_a > best_a:
+                    continue
+                placed_triangle(obj_a, tri_a, p)
+                for ib in range(first[nb], first[nb] + count[nb]):
+                    tri_b = prim_ids[ib]
+                    if not _before(tri_a, tri_b, best_a, best_b):
+                        continue
+                    placed_triangle(obj_b, tri_b, q)
+                    counts[COUNT_TRIANGLE_PAIRS] += 1
+                    if triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
+                        best_a = tri_a
+                        best_b = tri_b
+            continue
+        if top + 2 > stack.shape[0]:
+            grown = np.empty((2 * stack.shape[0], 2), np.int64)
+            grown[:top] = stack[:top]
+            stack = grown
+        # open the node that is not a leaf, or the larger of two inner nodes (as overlapping_leaves)
+        open_a = leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb]))
+        c0 = first[na] if open_a else first[nb]
+        small, large = (c0, c0 + 1) if min_prim[c0] <= min_prim[c0 + 1] else (c0 + 1, c0)
+        # the child with the smaller ids is popped first
+        stack[top, 0] = large if open_a else na
+        stack[top, 1] = nb if open_a else large
+        stack[top + 1, 0] = small if open_a else na
+        stack[top + 1, 1] = nb if open_a else small
+        top += 2
+    if best_a == np.iinfo(np.int64).max:
+        return stack, -1, -1
+    return stack, best_a, best_b
+
+
+@njit(cache=True)
+def smallest_touching_pairs(ps, poses, static, frame, wanted):
+    """The smallest intersecting triangle pair of each object pair wanted[k] = (a, b)
+    (int64 (K, 2)) at ``frame``: int64 (K, 2) rows (tri_a, tri_b), (-1, -1) where a pair
+    does not touch. The same pair as the smallest of scan_frames' collected pairs,
+    found without enumerating them."""
+    n_objects = poses.shape[1]
+    rp = poses[frame]
+    world = np.empty((ps.world_start[n_objects], 3))
+    stamp = np.full(ps.world_start[n_objects], -1, np.int64)
+    margin = np.empty(n_objects)
+    object_margins(ps, rp, rp, margin)
+    min_prim = min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids)
+    stack = np.empty((64, 2), np.int64)
+    counts = np.zeros(COUNT_WIDTH, np.int64)
+    out = np.empty((wanted.shape[0], 2), np.int64)
+    for k in range(wanted.shape[0]):
+        a = wanted[k, 0]
+        b = wanted[k, 1]
+        stack, out[k, 0], out[k, 1] = _smallest_pair_of(ps, rp, frame, a, b, margin[a] + margin[b], static, stamp,
+                                                        world, min_prim, stack, counts)
+    return out

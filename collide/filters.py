@@ -161,17 +161,6 @@ def build_filters(names, ignore=(), only=(), trajectory_ignore=(), trajectory_pa
     return Filters(traj + cli_ignore, cli_only, ignore_bits, only_bits)
 
 
-def exact_pairs(n_objects, pairs):
-    """The PairFilter selecting exactly the object pairs (a, b) of ``pairs`` (int (K, 2))."""
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    side_a = np.zeros((n_objects, pairs.shape[0]), bool)
-    side_b = np.zeros((n_objects, pairs.shape[0]), bool)
-    side_a[pairs[:, 0], np.arange(pairs.shape[0])] = True
-    side_b[pairs[:, 1], np.arange(pairs.shape[0])] = True
-    none = np.zeros((n_objects, 0), bool)
-    return PairFilter(_pack(none), _pack(none), _pack(side_a), _pack(side_b), True)
-
-
 def describe(filters):
     """The filter patterns as a JSON-able dict (for provenance and diff)."""
     return {"ignore": sorted(sorted(p) for p in filters.ignore),

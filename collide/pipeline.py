@@ -24,9 +24,9 @@ from .contacts import (
     intervals_from_steps,
     sort_columns,
 )
-from .discrete import scan_frames
+from .discrete import scan_frames, smallest_touching_pairs
 from .errors import InputError, UsageError
-from .filters import build_filters, describe, exact_pairs
+from .filters import build_filters, describe
 from .jit import kernel_cache_dir
 from .jit_events import announce, compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
@@ -241,16 +241,19 @@ def _total_counts(counts):
 def smallest_pairs_at_frames(contacts, where, ps, poses, static):
     """Set each contact's (tri_a, tri_b) that came from a frame hit to the smallest
     intersecting pair at that frame (hits found without collecting pairs hold the
-    first pair found, which depends on the BVH): one scan per such frame, of just the
-    object pairs that need it."""
+    first pair found, which depends on the BVH and the chunks): one branch-and-bound
+    search (discrete.smallest_touching_pairs) per such frame, of just the object pairs
+    that need it."""
     steps, _, from_hit = where
     for f in np.unique(steps[from_hit]):
         rows = np.flatnonzero(from_hit & (steps == f))
-        wanted = np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1)
-        hits, _, _ = scan_frames(ps, poses, static, exact_pairs(poses.shape[1], wanted), f, f + 1, False, False)
-        smallest = {(a, b): (ta, tb) for a, b, ta, tb in hits[:, [HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B]].tolist()}
-        for k in rows:
-            contacts["tri_a"][k], contacts["tri_b"][k] = smallest[(contacts["object_a"][k], contacts["object_b"][k])]
+        wanted = np.ascontiguousarray(np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1),
+                                      dtype=np.int64)
+        smallest = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted)
+        if (smallest < 0).any():
+            raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
+        contacts["tri_a"][rows] = smallest[:, 0]
+        contacts["tri_b"][rows] = smallest[:, 1]
 
 
 def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_tol, workers, progress,
@@ -422,7 +425,8 @@ def _compile_note(continuous):
     """Announce on stderr when numba really compiles (a machine's first run: about a
     minute), never on warm runs (collide.jit_events); "n of m" counts the top-level
     kernels that _compile_kernels prepares."""
-    return compile_notice([scan_frames, contact_point] + ([scan_intervals] if continuous else []))
+    return compile_notice([scan_frames, smallest_touching_pairs, contact_point]
+                          + ([scan_intervals] if continuous else []))
 
 
 def _start_warm_up(mode):
@@ -493,6 +497,8 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+    world_vertices(triangle, poses[0, 0])  # (contact points)
 
 
 def _check_options(mode, interpolation, workers):

@@ -28,7 +28,7 @@ from pathlib import Path
 #: units of work and the kernels they compile
 UNITS = {
     "continuous": ("scan_intervals",),
-    "discrete": ("scan_frames",),
+    "discrete": ("scan_frames", "smallest_touching_pairs"),
     "setup": ("bvh", "motion", "contact_point"),
 }
 #: which units a scan of each mode needs
@@ -163,6 +163,13 @@ def _scan_frames(ps, poses, static, pairs):
     scan_frames(ps, poses, static, pairs, 0, 0, False, True)
 
 
+def _smallest_touching_pairs(ps, poses, static, pairs):
+    import numpy as np
+
+    from .discrete import smallest_touching_pairs
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+
+
 def _scan_intervals(ps, poses, static, pairs):
     import numpy as np
 
@@ -193,7 +200,8 @@ def _contact_point(ps, poses, static, pairs):
     contact_point(triangle, triangle)
 
 
-_KERNELS = {"scan_frames": _scan_frames, "scan_intervals": _scan_intervals, "bvh": _bvh, "motion": _motion,
+_KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_touching_pairs,
+            "scan_intervals": _scan_intervals, "bvh": _bvh, "motion": _motion,
             "contact_point": _contact_point}
 
 

@@ -171,3 +171,49 @@ def test_contacts_do_not_depend_on_workers_or_chunks(monkeypatch, mode):
         assert (c["tri_a"][k], c["tri_b"][k]) == smallest
         checked += 1
     assert checked > 0 or mode == "continuous"  # the fixture's continuous contacts begin between frames
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
+    """The branch-and-bound search against every intersecting pair enumerated (two spheres
+    and a box, deeply overlapping, at random poses; leaf size 1 and 4)."""
+    import trimesh
+
+    from collide.discrete import scan_frames, smallest_touching_pairs
+    from collide.filters import build_filters
+    from collide.load import Mesh
+    from collide.packed import pack_scene
+    from collide.rows import PAIR_A, PAIR_B, PAIR_FRAME, PAIR_TRI_A, PAIR_TRI_B
+    rng = np.random.default_rng(seed)
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    box = trimesh.creation.box(extents=(1.5, 0.4, 0.4))
+    meshes = [Mesh(name, None, np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
+              for name, m in (("sphere", sphere), ("box", box))]
+    n_frames = 6
+    poses = np.zeros((n_frames, 3, 3, 4))
+    for f in range(n_frames):
+        for o in range(3):
+            q = rng.normal(size=4)
+            q /= np.linalg.norm(q)
+            poses[f, o, :, :3] = collide_rotation(q)
+            poses[f, o, :, 3] = rng.uniform(-0.6, 0.6, size=3)
+    static = np.zeros(3, bool)
+    pairs = build_filters(["a", "b", "c"]).kernel_filter()
+    for leaf_size in (1, 4):
+        ps, _ = pack_scene(meshes, np.array([0, 0, 1]), leaf_size=leaf_size)
+        _, every, _ = scan_frames(ps, poses, static, pairs, 0, n_frames, True, False)
+        for f in range(n_frames):
+            wanted = np.array([(0, 1), (0, 2), (1, 2)], np.int64)
+            found = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted)
+            for (a, b), got in zip(wanted, found):
+                at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]
+                expected = min(map(tuple, at[:, [PAIR_TRI_A, PAIR_TRI_B]].tolist())) if at.size else (-1, -1)
+                assert tuple(got) == expected, (leaf_size, f, a, b)
+
+
+def collide_rotation(q):
+    """Rotation matrix of the unit quaternion q = (w, x, y, z)."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])

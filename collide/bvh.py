@@ -273,9 +273,19 @@ def triangle_boxes(vertices, faces):
     """Per-triangle boxes and centroids.
 
     vertices float64 (V, 3), faces int64 (F, 3) -> (lo, hi, centroid), each (F, 3).
+    Corner by corner: the values of ``vertices[faces].min(axis=1)``, ``.max(axis=1)``
+    and ``.mean(axis=1)`` (the centroid is (a + b + c) / 3 in that order, as numpy's mean
+    sums over a short axis), several times faster than reducing the (F, 3, 3) array.
     """
-    corners = vertices[faces]  # (F, 3, 3)
-    return corners.min(axis=1), corners.max(axis=1), corners.mean(axis=1)
+    columns = np.ascontiguousarray(np.asarray(faces).T)
+    a, b, c = (np.asarray(vertices).take(columns[k], axis=0) for k in range(3))
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    np.minimum(lo, c, out=lo)
+    np.maximum(hi, c, out=hi)
+    centre = np.add(a, b, dtype=np.float64)
+    centre += c
+    centre /= 3
+    return lo, hi, centre
 
 
 def build_mesh_bvh(vertices, faces, split="sah", leaf_size=None):

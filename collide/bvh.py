@@ -26,10 +26,12 @@ in the construction of BVHs, octrees, and k-d trees"): each centre gets a 63-bit
 Morton code (21 bits per axis, in the centres' bounding cube), the primitives are
 sorted by code (ties by index), and every inner node of the binary radix tree over
 the sorted codes is found independently of the others (its range and split from the
-codes alone). Subtrees of at most ``leaf_size`` primitives become leaves; the
-remaining tree is renumbered into the layout above and its boxes refitted from the
-leaves up. On large meshes it builds 10-30 times faster than ``sah``; its trees have a
-higher SAH cost, so queries are slower (``benchmarks/bench_bvh_build.py`` measures both).
+codes alone). The tree is laid out as above (one primitive per leaf) and its boxes
+refitted from the leaves up; then, bottom-up, every subtree of at most ``leaf_size``
+primitives that is cheaper as a leaf (by the SAH cost that ``bvh_stats`` reports)
+becomes one (Karras and Aila 2013). On large meshes it builds about ten times faster
+than ``sah``; its trees have a higher SAH cost, so queries are slower
+(``benchmarks/bench_bvh_build.py`` measures both).
 """
 import time
 from typing import NamedTuple
@@ -436,6 +438,73 @@ def _refit(first, count, prim_ids, box_lo, box_hi):
     return lo, hi
 
 
+@njit(cache=True)
+def _sah_collapse(first, count, lo, hi, leaf_size, traversal_cost):
+    """The tree (first, count, lo, hi: a BVH's node arrays, children after parents) with
+    the subtrees that are cheaper as leaves collapsed into leaves, renumbered (preorder,
+    children side by side): returns (lo, hi, first, count).
+
+    Bottom-up, every node's cheapest cost is its leaf cost (half area x primitives; only
+    with at most leaf_size primitives) or its cost as an inner node (traversal_cost x half
+    area + its children's cheapest costs), whichever is lower (a leaf on ties); the sum is
+    the SAH cost that bvh_stats reports (before dividing by the root's half area), and the
+    choice minimises it over all collapses of the given tree (Karras and Aila 2013).
+    """
+    m = first.shape[0]
+    size = np.empty(m, np.int64)
+    start = np.empty(m, np.int64)
+    cost = np.empty(m)
+    leaf = np.empty(m, np.bool_)
+    n_out = np.empty(m, np.int64)   # nodes of the collapsed subtree
+    for node in range(m - 1, -1, -1):
+        area = _half_area(lo[node], hi[node])
+        if count[node] > 0:
+            size[node] = count[node]
+            start[node] = first[node]
+            cost[node] = area * count[node]
+            leaf[node] = True
+            n_out[node] = 1
+            continue
+        c = first[node]
+        size[node] = size[c] + size[c + 1]
+        start[node] = start[c]
+        split_cost = traversal_cost * area + cost[c] + cost[c + 1]
+        leaf_cost = area * size[node]
+        if size[node] <= leaf_size and leaf_cost <= split_cost:
+            cost[node] = leaf_cost
+            leaf[node] = True
+            n_out[node] = 1
+        else:
+            cost[node] = split_cost
+            leaf[node] = False
+            n_out[node] = 1 + n_out[c] + n_out[c + 1]
+    n_nodes = n_out[0]
+    out_lo = np.empty((n_nodes, 3))
+    out_hi = np.empty((n_nodes, 3))
+    out_first = np.zeros(n_nodes, np.int64)
+    out_count = np.zeros(n_nodes, np.int64)
+    stack = np.empty((n_nodes, 2), np.int64)   # (node, output node)
+    stack[0] = (0, 0)
+    top = 1
+    used = 1
+    while top > 0:
+        top -= 1
+        node, out = stack[top, 0], stack[top, 1]
+        out_lo[out] = lo[node]
+        out_hi[out] = hi[node]
+        if leaf[node]:
+            out_first[out] = start[node]
+            out_count[out] = size[node]
+            continue
+        left = used
+        used += 2
+        out_first[out] = left
+        stack[top] = (first[node] + 1, left + 1)
+        stack[top + 1] = (first[node], left)
+        top += 2
+    return out_lo, out_hi, out_first, out_count
+
+
 def _build_lbvh(box_lo, box_hi, centre, leaf_size):
     """The lbvh builder: the arrays of a BVH (see the module docstring); parallel from
     config.LBVH_PARALLEL_MIN primitives on."""
@@ -456,8 +525,9 @@ def _build_lbvh_kernels(box_lo, box_hi, centre, leaf_size):
     codes = _morton_codes(centre, c_lo, scale)
     prim_ids = np.argsort(codes, kind="stable").astype(np.int64, copy=False)
     split = _radix_splits(np.ascontiguousarray(codes[prim_ids]))
-    first, count = _radix_layout(split, n, leaf_size)
+    first, count = _radix_layout(split, n, 1)
     lo, hi = _refit(first, count, prim_ids, box_lo, box_hi)
+    lo, hi, first, count = _sah_collapse(first, count, lo, hi, leaf_size, config.SAH_TRAVERSAL_COST)
     return lo, hi, first, count, prim_ids
 
 

@@ -63,8 +63,8 @@ SPLIT_RULES = ("sah", "median", "mean", "lbvh")
 
 #: The lbvh builder runs its parallel loops on one thread for fewer primitives than this:
 #: each parallel loop costs from microseconds (idle cores) to ~10 ms (cores busy with
-#: other work) to start and join its threads, more than a build this small takes alone
-#: (~25 ms on one thread). Primitives.
+#: other work) to start and join its threads, a good part of a build this small on one
+#: thread (~30 ms). Primitives.
 LBVH_PARALLEL_MIN = 1 << 16
 
 #: Default maximum number of triangles per BVH leaf.

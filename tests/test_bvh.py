@@ -109,18 +109,41 @@ def test_radix_tree_splits_at_the_first_differing_bit(seed):
     assert seen == n - 1
 
 
-def test_lbvh_leaves_are_the_collapsed_radix_subtrees():
-    """Leaves of a tree with leaf_size k are whole subtrees of the leaf_size 1 tree: runs of
-    consecutive Morton-sorted primitives; prim_ids do not depend on leaf_size."""
+def test_lbvh_collapses_exactly_the_radix_subtrees_that_are_cheaper_as_leaves():
+    """The leaf_size 4 tree is the leaf_size 1 tree (the whole radix tree, same primitive
+    order) with every subtree of at most 4 primitives whose leaf cost is at most its best
+    cost as an inner node made a leaf; its SAH cost is that optimum."""
     mesh = load_mesh(DATA / "env.obj")
-    trees = {k: build_mesh_bvh(mesh.vertices, mesh.faces, "lbvh", k) for k in (1, 4, 64)}
-    assert all(np.array_equal(t.prim_ids, trees[1].prim_ids) for t in trees.values())
-    assert trees[1].count.shape[0] == 2 * mesh.faces.shape[0] - 1
-    assert trees[1].count.shape[0] > trees[4].count.shape[0] > trees[64].count.shape[0]
+    n = mesh.faces.shape[0]
+    full = build_mesh_bvh(mesh.vertices, mesh.faces, "lbvh", 1)
+    tree = build_mesh_bvh(mesh.vertices, mesh.faces, "lbvh", 4)
+    assert full.count.shape[0] == 2 * n - 1 and np.array_equal(tree.prim_ids, full.prim_ids)
+
+    def ranges(bvh):   # (start, size) of every node's primitives
+        m = bvh.count.shape[0]
+        start, size = np.zeros(m, np.int64), np.zeros(m, np.int64)
+        for node in range(m - 1, -1, -1):
+            c = bvh.first[node]
+            start[node], size[node] = (c, bvh.count[node]) if bvh.count[node] else (start[c], size[c] + size[c + 1])
+        return list(zip(start.tolist(), size.tolist()))
+
+    areas = [bvh_module._half_area(lo, hi) for lo, hi in zip(full.lo, full.hi)]
+    best, as_leaf = np.zeros(2 * n - 1), {}
+    for node, (start, size) in reversed(list(enumerate(ranges(full)))):
+        c = full.first[node]
+        inner = np.inf if full.count[node] else areas[node] + best[c] + best[c + 1]
+        leaf = areas[node] * size if size <= 4 else np.inf
+        best[node] = min(leaf, inner)
+        as_leaf[(start, size)] = leaf <= inner
+    tree_ranges = ranges(tree)
+    assert all(r in as_leaf for r in tree_ranges)   # every node is a node of the radix tree
+    assert all(as_leaf[r] == (tree.count[k] > 0) for k, r in enumerate(tree_ranges))
+    assert np.isclose(bvh_stats(tree)["sah_cost"] * areas[0], best[0], rtol=1e-12)
 
 
-def test_lbvh_does_not_depend_on_the_thread_count():
+def test_lbvh_does_not_depend_on_the_thread_count(monkeypatch):
     numba = pytest.importorskip("numba")
+    monkeypatch.setattr(bvh_module.config, "LBVH_PARALLEL_MIN", 0)   # parallel at any size
     mesh = load_mesh(DATA / "env.obj")
     previous = numba.get_num_threads()
     try:

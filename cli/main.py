@@ -311,7 +311,7 @@ def cli():
 @click.option("--split", type=click.Choice(config.SPLIT_RULES), default=config.SPLIT_RULES[0], show_default=True,
               help="BVH construction: sah (binned surface area heuristic: the best trees), median or mean "
                    "(split at the median or mean centre), lbvh (bottom-up from Morton codes, in parallel: "
-                   "fastest to build, somewhat slower to query).")
+                   "fastest to build, slower to query: see collide inspect's SAH cost).")
 @click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
               help=f"Max triangles per BVH leaf [default: {config.DEFAULT_LEAF_SIZE}].")
 @click.option("--triangle-pairs", is_flag=True, help="Also write every intersecting triangle pair "

@@ -58,7 +58,7 @@ LINEAR_DEVIATION_WARN_REL = 1e-3
 # --- BVH ----------------------------------------------------------------------
 #: The BVH construction rules (collide.bvh; the choices of --split), the default first:
 #: top-down binned surface area heuristic, median or mean centre; bottom-up Morton-code
-#: LBVH (parallel, fastest to build, somewhat costlier to query).
+#: LBVH (parallel, fastest to build, slower to query).
 SPLIT_RULES = ("sah", "median", "mean", "lbvh")
 
 #: The lbvh builder runs its parallel loops on one thread for fewer primitives than this:

@@ -158,3 +158,14 @@ def test_lbvh_does_not_depend_on_the_thread_count(monkeypatch):
 def test_unknown_split_rule_is_an_error():
     with pytest.raises(ValueError, match="unknown split rule"):
         build_bvh(np.zeros((2, 3)), np.ones((2, 3)), np.zeros((2, 3)), "middle")
+
+
+def test_thread_limit_caps_and_restores_numba_threads():
+    numba = pytest.importorskip("numba")
+    from collide.jit import thread_limit
+    before = numba.get_num_threads()
+    with thread_limit(1):
+        assert numba.get_num_threads() == 1
+    with thread_limit(10**6):
+        assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
+    assert numba.get_num_threads() == before

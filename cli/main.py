@@ -308,8 +308,10 @@ def cli():
 @click.option("--glob", default=None, metavar="PATTERN",
               help="Which files of MESHES are meshes (e.g. '*.stl' when each mesh comes in several formats) "
                    "[default: every file trimesh loads].")
-@click.option("--split", type=click.Choice(["sah", "median", "mean"]), default="sah", show_default=True,
-              help="BVH split rule.")
+@click.option("--split", type=click.Choice(config.SPLIT_RULES), default=config.SPLIT_RULES[0], show_default=True,
+              help="BVH construction: sah (binned surface area heuristic: the best trees), median or mean "
+                   "(split at the median or mean centre), lbvh (bottom-up from Morton codes, in parallel: "
+                   "fastest to build, slower to query: see collide inspect's SAH cost).")
 @click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
               help=f"Max triangles per BVH leaf [default: {config.DEFAULT_LEAF_SIZE}].")
 @click.option("--triangle-pairs", is_flag=True, help="Also write every intersecting triangle pair "
@@ -417,8 +419,9 @@ def validate(trajectory, meshes, allow_external_data, max_memory):
 
 @cli.command()
 @click.argument("meshes", type=PATH)
-@click.option("--split", "splits", type=click.Choice(["sah", "median", "mean"]), multiple=True,
-              help="Split rule(s) to build with [default: all three].")
+@click.option("--split", "splits", type=click.Choice(config.SPLIT_RULES), multiple=True,
+              help=f"BVH construction rule(s) to build with (repeatable) [default: all: "
+                   f"{', '.join(config.SPLIT_RULES)}].")
 @click.option("--leaf-size", type=click.IntRange(min=1, max=config.MAX_LEAF_SIZE), default=None,
               help="Max triangles per BVH leaf.")
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
@@ -426,7 +429,7 @@ def validate(trajectory, meshes, allow_external_data, max_memory):
 def inspect(meshes, splits, leaf_size, fmt):
     """Mesh and BVH statistics for every mesh in MESHES, per split rule."""
     from collide.inspect import inspect_meshes
-    rows = inspect_meshes(meshes, splits or ("sah", "median", "mean"), leaf_size)
+    rows = inspect_meshes(meshes, splits or config.SPLIT_RULES, leaf_size)
     if fmt == "json":
         click.echo(_json(rows, indent=1))
         return

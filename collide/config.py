@@ -56,6 +56,17 @@ SUBSTEP_DEVIATION_REL = 1e-3
 LINEAR_DEVIATION_WARN_REL = 1e-3
 
 # --- BVH ----------------------------------------------------------------------
+#: The BVH construction rules (collide.bvh; the choices of --split), the default first:
+#: top-down binned surface area heuristic, median or mean centre; bottom-up Morton-code
+#: LBVH (parallel, fastest to build, slower to query).
+SPLIT_RULES = ("sah", "median", "mean", "lbvh")
+
+#: The lbvh builder runs its parallel loops on one thread for fewer primitives than this:
+#: each parallel loop costs from microseconds (idle cores) to ~10 ms (cores busy with
+#: other work) to start and join its threads, a good part of a build this small on one
+#: thread (~30 ms). Primitives.
+LBVH_PARALLEL_MIN = 1 << 16
+
 #: Default maximum number of triangles per BVH leaf.
 DEFAULT_LEAF_SIZE = 4
 

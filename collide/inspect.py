@@ -1,9 +1,10 @@
 """Mesh and BVH statistics (``collide inspect``)."""
 from .bvh import bvh_stats, timed_build
+from .config import SPLIT_RULES
 from .load import load_mesh, mesh_files
 
 
-def inspect_meshes(folder, splits=("sah", "median", "mean"), leaf_size=None):
+def inspect_meshes(folder, splits=SPLIT_RULES, leaf_size=None):
     """One row per (mesh, split rule): triangles, nodes, depth, leaf sizes, SAH cost, build seconds.
 
     Build times are of a second build, so they exclude the one-off JIT compilation.

@@ -19,6 +19,7 @@ per-user cache).
 import hashlib
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import numba
@@ -89,6 +90,18 @@ class ContentKeyedLocator(caching._CacheLocator):
         except OSError:
             return None  # not writable: numba's own locators decide
         return locator
+
+
+@contextmanager
+def thread_limit(n):
+    """Within the block, numba's parallel kernels (``prange``, e.g. the lbvh BVH builder)
+    called from this thread use at most ``n`` threads (and at most NUMBA_NUM_THREADS)."""
+    previous = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)
 
 
 def _install():

@@ -27,7 +27,7 @@ from .contacts import (
 from .discrete import scan_frames, smallest_touching_pairs
 from .errors import InputError, UsageError
 from .filters import build_filters, describe
-from .jit import kernel_cache_dir
+from .jit import kernel_cache_dir, thread_limit
 from .jit_events import announce, compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .meshcache import MeshCache
@@ -450,7 +450,7 @@ def _finish_warm_up(compiling):
 
 
 def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, interpolation, warn_angle, ignore, only,
-             glob, max_memory, allow_external_data, cache, compiling):
+             glob, max_memory, allow_external_data, cache, compiling, workers):
     """Load and check the inputs, build the BVHs, make the kernels ready (compiling, or
     waiting for the warm-up workers ``compiling``, on a first run). Returns (scene,
     packed scene, poses (T, N, 3, 4), frame index, filters, dist_tol, timings)."""
@@ -463,8 +463,9 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
     index, poses = scene.frame_index, scene.poses
     timings["load_s"] = time.perf_counter() - start
     continuous = mode == "continuous"
-    ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
-                                        build_bvh=mesh_cache.build_mesh_bvh)
+    with thread_limit(workers):  # a parallel builder (lbvh) uses at most the scan's threads
+        ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
+                                            build_bvh=mesh_cache.build_mesh_bvh)
     start = time.perf_counter()
     dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
     if continuous:
@@ -539,7 +540,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     try:
         scene, ps, poses, index, filters, dist_tol, timings = _prepare(
             meshes, trajectory, mode, split, leaf_size, frames, time_tol, interpolation, warn_angle, ignore, only,
-            glob, max_memory, allow_external_data, cache, compiling)
+            glob, max_memory, allow_external_data, cache, compiling, workers)
     finally:
         if compiling is not None:
             compiling.stop()

@@ -12,6 +12,7 @@ import pytest
 from conftest import run_cli, write_box
 
 import collide
+from collide import config
 
 
 def test_version_and_help():
@@ -85,10 +86,12 @@ def test_validate_and_inspect(two_boxes):
     assert proc.returncode == 0, proc.stderr
     rows = json.loads(proc.stdout)
     assert {(r["mesh"], r["split"]) for r in rows} == {(m, s) for m in ("fixed.stl", "mover.obj")
-                                                       for s in ("sah", "median", "mean")}
+                                                       for s in config.SPLIT_RULES}
     assert all(r["triangles"] == 12 and r["nodes"] >= 3 for r in rows)
-    table = run_cli("inspect", meshes, "--split", "sah")
+    assert all(r["sah_cost"] > 0 for r in rows)
+    table = run_cli("inspect", meshes, "--split", "sah", "--split", "lbvh")
     assert table.returncode == 0 and "SAH cost" in table.stdout and "median" not in table.stdout
+    assert sorted(line.split()[2] for line in table.stdout.splitlines()[1:]) == ["lbvh", "lbvh", "sah", "sah"]
 
 
 def test_internal_error_exit_3_traceback_only_with_v(two_boxes, tmp_path):

@@ -1,7 +1,10 @@
 """The bundled examples behave as examples/make_examples.py describes them."""
-from conftest import REPO
+import numpy as np
+import pytest
+from conftest import REPO, run_cli
 
 import collide
+from collide import config
 
 EXAMPLES = REPO / "examples"
 
@@ -26,3 +29,26 @@ def test_fixture_example_contacts():
     pairs = {(result.object_names[a], result.object_names[b]) for a, b in zip(c["object_a"], c["object_b"])}
     assert pairs == {("peg_b", "frame"), ("arm", "pillar")}   # peg_a's 1 mm clearance is a near miss
     assert result.object_meshes[:2] == ["peg.ply", "peg.ply"]
+
+
+
+@pytest.mark.parametrize("mode", ["discrete", "continuous"])
+def test_fixture_contacts_do_not_depend_on_the_bvh_rule(tmp_path, mode):
+    """Every --split finds sah's contacts on the fixture, value for value (lbvh also through
+    the command line; continuous mode: sah and lbvh on every 4th frame, to stay quick)."""
+    meshes, traj = EXAMPLES / "fixture" / "meshes", EXAMPLES / "fixture" / "traj.h5"
+    frames = None if mode == "discrete" else "0:240:4"
+    splits = config.SPLIT_RULES if mode == "discrete" else ("sah", "lbvh")
+    runs = {split: collide.scan(meshes, traj, mode=mode, split=split, frames=frames, cache=False).contacts
+            for split in splits}
+    if mode == "discrete":
+        proc = run_cli("scan", meshes, traj, "-o", tmp_path / "lbvh.h5", "--mode", mode, "--split", "lbvh",
+                       "--no-cache")
+        assert proc.returncode == 0, proc.stderr
+        runs["lbvh (command line)"] = collide.read_contacts(tmp_path / "lbvh.h5").contacts
+    reference = runs.pop("sah")
+    assert reference["t_begin"].size == 2
+    for split, contacts in runs.items():
+        assert sorted(contacts) == sorted(reference), split
+        for name, column in reference.items():
+            np.testing.assert_array_equal(contacts[name], column, err_msg=f"{split}: {name}")

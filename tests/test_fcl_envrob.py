@@ -11,6 +11,7 @@ from fcl_poses import fcl_model, fcl_poses
 from numba import njit
 
 import collide
+from collide import config
 from collide.load import load_mesh
 from collide.packed import world_vertices
 from collide.predicates import triangles_intersect
@@ -58,7 +59,7 @@ def envrob(tmp_path_factory):
     return meshes, traj, sorted(reference)
 
 
-@pytest.mark.parametrize("split", ["sah", "median", "mean"])
+@pytest.mark.parametrize("split", config.SPLIT_RULES)
 def test_pairs_equal_brute_force_at_every_frame(envrob, split):
     meshes, traj, reference = envrob
     result = collide.scan(meshes, traj, mode="discrete", triangle_pairs=True, split=split)
@@ -107,11 +108,11 @@ def test_contact_rows_do_not_depend_on_split_or_triangle_pairs(envrob):
     # (turns near half a turn), so the continuous runs look at the first few only
     runs = [collide.scan(meshes, traj, mode=mode, split=split, triangle_pairs=pairs,
                          frames=None if mode == "discrete" else "0:6").contacts
-            for mode in ("discrete", "continuous") for split in ("sah", "mean") for pairs in (True, False)]
-    for run in runs[1:4]:
+            for mode in ("discrete", "continuous") for split in ("sah", "mean", "lbvh") for pairs in (True, False)]
+    for run in runs[1:6]:
         assert all(np.array_equal(runs[0][k], run[k], equal_nan=True) for k in runs[0])
-    for run in runs[5:]:
-        assert all(np.array_equal(runs[4][k], run[k], equal_nan=True) for k in runs[4])
+    for run in runs[7:]:
+        assert all(np.array_equal(runs[6][k], run[k], equal_nan=True) for k in runs[6])
     smallest = {}
     for f, ta, tb in reference:
         smallest.setdefault(f, (ta, tb))

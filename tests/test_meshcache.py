@@ -98,7 +98,7 @@ def test_same_bytes_elsewhere_share_the_entry_under_their_own_name(cache, rob, t
     assert len(entries(cache)) == 1
 
 
-@pytest.mark.parametrize("split", ["sah", "median", "mean"])
+@pytest.mark.parametrize("split", config.SPLIT_RULES)
 def test_second_bvh_is_read_from_the_cache_bit_for_bit(cache, rob, split, monkeypatch):
     mesh = load_mesh(rob)
     reference = build_mesh_bvh(mesh.vertices, mesh.faces, split, 3)
@@ -119,7 +119,7 @@ def test_default_leaf_size_is_the_configured_one(cache, rob, monkeypatch):
 
 
 def test_bvh_options_get_their_own_entries_and_share_the_mesh(cache, rob, monkeypatch):
-    options = [("sah", 4), ("sah", 2), ("median", 4), ("mean", 1)]
+    options = [("sah", 4), ("sah", 2), ("median", 4), ("mean", 1), ("lbvh", 4)]
     for split, leaf_size in options:
         mesh = mc.load_mesh_cached(rob)
         mc.mesh_bvh_cached(mesh, split, leaf_size)
@@ -455,7 +455,7 @@ def test_bvh_checks_accept_every_builder_output():
         lo, hi, _ = triangle_boxes(mesh.vertices, mesh.faces)
         assert all(same_arrays(a, b) for a, b in zip(mc._triangle_box_corners(mesh.vertices, mesh.faces),
                                                      (lo, hi)))
-        for split in ("sah", "median", "mean"):
+        for split in config.SPLIT_RULES:
             for leaf_size in (1, 2, 4, 7):
                 bvh = build_mesh_bvh(mesh.vertices, mesh.faces, split, leaf_size)
                 mc.check_bvh_arrays(bvh._asdict(), mesh.vertices, mesh.faces, leaf_size)

@@ -148,7 +148,8 @@ def bench_queries(folder, kind, mesh, frames, splits, workers_list, repeat, log)
                     row["contacts"] = result.stats["contacts"]
                     row["triangle_pairs"] = result.stats["triangle_pairs"]
                     row["same"] &= same_result(result, reference[pairs], pairs)
-                    print(f"  query {kind}: {split}, workers {workers}, triangle_pairs {pairs}, round {r + 1}/{repeat}: "
+                    print(f"  query {kind}: {split}, workers {workers}, triangle_pairs {pairs}, "
+                          f"round {r + 1}/{repeat}: "
                           f"scan {result.stats['scan_s']:.3f} s ({machine_load()})", file=log, flush=True)
     return out
 
@@ -231,7 +232,8 @@ def main(argv=None):
                 mesh = make_mesh(kind, args.query_triangles, args.seed)
                 results = bench_queries(folder, kind, mesh, args.frames, splits, threads_list, args.repeat, log)
                 query_table += query_rows(kind, len(mesh.faces), results, splits, threads_list)
-            print(f"\n2. query: discrete scan of two overlapping copies, {args.frames} frames (median of {args.repeat}; "
+            print(f"\n2. query: discrete scan of two overlapping copies, {args.frames} frames "
+                  f"(median of {args.repeat}; "
                   "scan = seconds.scan, BVHs built before; first pair: as scans run, all pairs: triangle_pairs=True)")
             print_table(["mesh", "triangles", "descent", "split", "workers", "scan s", "scan / sah", "node pairs",
                          "node pairs / sah", "leaf pairs", "tri pairs", "contacts", "same as sah"], query_table)

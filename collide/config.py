@@ -89,6 +89,10 @@ MAX_COORDINATE = 1e90
 #: machine's physical memory. Unitless.
 MAX_MEMORY_FRACTION = 0.5
 
+#: With --triangle-pairs, frames are scanned (and their rows written) this many at
+#: a time: the rows of at most 2 x workers such chunks are in memory. Frames.
+PAIR_CHUNK_FRAMES = 8
+
 #: Poses are read and converted this many (frame, object) poses at a time, so the
 #: conversion's temporaries (about 60 float64 values per pose) stay a few tens of
 #: MB whatever the trajectory's length. Count.

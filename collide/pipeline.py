@@ -115,8 +115,9 @@ def _inputs(scene, trajectory, digests):
     return {"trajectory": traj, "meshes": meshes}
 
 
-def _chunks(n_items, workers):
-    size = max(1, min(64, -(-n_items // (8 * workers))))
+def _chunks(n_items, workers, max_size=64):
+    """(start, stop) chunks of range(n_items): about 8 per worker, at most max_size items."""
+    size = max(1, min(max_size, -(-n_items // (8 * workers))))
     return [(s, min(s + size, n_items)) for s in range(0, n_items, size)]
 
 
@@ -138,7 +139,7 @@ def _run_chunks(kernel, shared, extra, n_items, workers, progress, scheduler=Non
     return [result for _, result in _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler)]
 
 
-def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=None):
+def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=None, max_size=64):
     """Yield ((start, stop), kernel(*shared, start, stop, *extra)) for chunks of
     range(n_items), in chunk order, computed in parallel.
 
@@ -152,7 +153,7 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     if scheduler is not None:
         yield from _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
         return
-    chunks = _chunks(n_items, workers)
+    chunks = _chunks(n_items, workers, max_size=max_size)
     ahead = 2 * workers
     with ThreadPoolExecutor(max_workers=workers) as pool:
         pending = {}
@@ -223,7 +224,7 @@ def _run_discrete(ps, poses, static, filters, pair_sink, workers, progress, sche
     hits = []
     for (start, stop), (chunk_hits, chunk_pairs, chunk_counts) in _chunk_results(
             scan_frames, (ps, poses, static, filters.kernel_filter(extra_ignore=static)), (collect, not collect),
-            n_frames, workers, progress, scheduler):
+            n_frames, workers, progress, scheduler, max_size=config.PAIR_CHUNK_FRAMES if collect else 64):
         hits.append(chunk_hits)
         counts.append(chunk_counts)
         if collect:

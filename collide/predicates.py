@@ -148,6 +148,8 @@ def orient2d(ax, ay, bx, by, cx, cy):
         return -1
     if (_exact_difference(ax, cx, acx) and _exact_difference(ay, cy, acy) and _exact_difference(bx, cx, bcx)
             and _exact_difference(by, cy, bcy)):
+        if left == 0.0 and right == 0.0:
+            return 0  # both exact products are zero (they cannot underflow: _exact_difference)
         return _orient2d_exact_diffs(acx, acy, bcx, bcy)  # the differences are exact: a short expansion
     return _orient2d_exact(ax, ay, bx, by, cx, cy)
 
@@ -227,7 +229,11 @@ def orient3d(a, b, c, d):
             and _exact_difference(c[0], d[0], cdx) and _exact_difference(c[1], d[1], cdy)
             and _exact_difference(c[2], d[2], cdz)):
         # the differences are exact (Shewchuk's stage B case, common for coplanar grids):
-        # the determinant of the differences themselves, 24 exact terms instead of 96
+        # the determinant of the differences themselves, 24 exact terms instead of 96.
+        # Their products cannot underflow (_exact_difference), so a zero permanent means
+        # every term is exactly zero (e.g. four points in one axis-aligned plane).
+        if permanent == 0.0:
+            return 0
         return _orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz)
     return _orient3d_exact(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
 

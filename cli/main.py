@@ -69,10 +69,12 @@ def _set_verbosity(ctx, param, value):
 
 
 class _OneLineFormatter(logging.Formatter):
-    """collide's log lines: control characters in names and paths are escaped."""
+    """collide's log lines: control characters in names and paths are escaped; on a
+    terminal, a status line in progress (scan's stages) is cleared first."""
 
     def format(self, record):
-        return escape_text(super().format(record))
+        text = escape_text(super().format(record))
+        return "\r\033[K" + text if sys.stderr.isatty() else text
 
 
 #: log level of notes (facts shown by default that are not warnings; collide.pipeline.NOTE)
@@ -341,11 +343,20 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
     """Find when, where and for how long the meshes in MESHES touch along TRAJECTORY."""
     bar = None
     state = {"done": 0}
+    live = _state["verbosity"] >= 0 and sys.stderr.isatty()
+
+    def stage(text):
+        """On a terminal, one status line that each stage overwrites (cleared by the bar)."""
+        if live and bar is None:
+            sys.stderr.write(f"\r\033[Kcollide: {text}...")
+            sys.stderr.flush()
 
     def progress(done, total):
         nonlocal bar
         if bar is None:
-            bar = _progress_bar(total, "scanning frames")
+            if live:
+                sys.stderr.write("\r\033[K")
+            bar = _progress_bar(total, "frames and steps" if mode == "continuous" else "frames")
             if bar is None:
                 return
             bar.__enter__()
@@ -360,13 +371,15 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
                               triangle_pairs=triangle_pairs, frames=frames, workers=workers,
                               scheduler=scheduler, time_tol=time_tol, interpolation=interpolation,
                               warn_angle=warn_angle, ignore=ignore, only=only, glob=glob,
-                              output=output, progress=progress,
+                              output=output, progress=progress, stage=stage,
                               command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
                               allow_external_data=allow_external_data, cache=not no_cache)
     finally:
         report_to(None)
         if bar is not None:
             bar.__exit__(None, None, None)
+        elif live:
+            sys.stderr.write("\r\033[K")
     _print_summary(result, output, fmt)
     if fail_on_contact and result.stats["contacts"] > 0:
         sys.exit(EXIT_FINDINGS)

@@ -451,23 +451,26 @@ def _finish_warm_up(compiling):
 
 
 def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, interpolation, warn_angle, ignore, only,
-             glob, max_memory, allow_external_data, cache, compiling, workers):
+             glob, max_memory, allow_external_data, cache, compiling, workers, stage):
     """Load and check the inputs, build the BVHs, make the kernels ready (compiling, or
     waiting for the warm-up workers ``compiling``, on a first run). Returns (scene,
     packed scene, poses (T, N, 3, 4), frame index, filters, dist_tol, timings)."""
     timings = {}
     start = time.perf_counter()
     mesh_cache = MeshCache(enabled=cache)
+    stage("loading inputs")
     scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory,
                        glob=glob, mesh_loader=mesh_cache.load_mesh, frames=frames)
     filters = build_filters(scene.names, ignore, only, scene.ignore, scene.trajectory_path)
     index, poses = scene.frame_index, scene.poses
     timings["load_s"] = time.perf_counter() - start
     continuous = mode == "continuous"
+    stage(f"building BVHs ({len(scene.meshes)} meshes)")
     with thread_limit(workers):  # a parallel builder (lbvh) uses at most the scan's threads
         ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
                                             build_bvh=mesh_cache.build_mesh_bvh)
     start = time.perf_counter()
+    stage("preparing kernels")
     dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
     if continuous:
         check_motion(scene, ps, poses, index, interpolation, warn_angle)
@@ -517,7 +520,7 @@ def _check_options(mode, interpolation, workers):
 def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          triangle_pairs=False, frames=None, workers=None, scheduler=None,
          time_tol=config.TIME_TOL, interpolation="screw", warn_angle=config.SCREW_WARN_DEG,
-         ignore=(), only=(), glob=None, output=None, progress=None, command=None, max_memory=None,
+         ignore=(), only=(), glob=None, output=None, progress=None, stage=None, command=None, max_memory=None,
          allow_external_data=False, cache=True):
     """Find when, where and for how long the meshes touch along the trajectory.
 
@@ -527,7 +530,9 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     motion warns of under-sampling; ``ignore`` and ``only``: object pairs to skip,
     or to check alone, as 'A:B' name globs or (A, B) pairs (added to the
     trajectory's filters/ignore); ``glob``: which files of the meshes folder are
-    meshes. ``progress(done, total)`` is called as work completes. With ``output``
+    meshes. ``progress(done, total)`` is called as work completes (frames, plus motion
+    steps in continuous mode); ``stage(text)`` as each stage begins ("loading inputs",
+    "building BVHs", "preparing kernels", "scanning", "contact points"). With ``output``
     the result is also written there (atomically; never over an input).
     ``max_memory`` and ``allow_external_data``: see load.load_trajectory. ``cache=False``
     parses every mesh and builds every BVH afresh (see collide.meshcache). Returns a
@@ -538,10 +543,11 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     if output is not None:
         check_output_path(output, inputs)  # fail before the work, not after
     compiling = _start_warm_up(mode) if scheduler is None else None
+    stage = stage or (lambda text: None)
     try:
         scene, ps, poses, index, filters, dist_tol, timings = _prepare(
             meshes, trajectory, mode, split, leaf_size, frames, time_tol, interpolation, warn_angle, ignore, only,
-            glob, max_memory, allow_external_data, cache, compiling, workers)
+            glob, max_memory, allow_external_data, cache, compiling, workers, stage)
     finally:
         if compiling is not None:
             compiling.stop()
@@ -559,6 +565,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         if triangle_pairs:
             pair_sink = TrianglePairs(TrianglePairWriter(h5) if h5 is not None else None)
         start = time.perf_counter()
+        stage("scanning")
         work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
         hits, counts = _run_discrete(ps, poses, scene.static, filters, pair_sink, workers, work, scheduler)
         if continuous:
@@ -570,6 +577,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                                                    np.concatenate([fractions, static_fractions]), hits, frame_time)
         else:
             contacts, where = intervals_from_hits(hits, frame_time)
+        stage("contact points")
         if not triangle_pairs:
             smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
         _fill_contact_points(contacts, where, scene, poses, interpolation)

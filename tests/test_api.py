@@ -82,3 +82,16 @@ def test_bad_arrays_are_bad_input_naming_what():
     with pytest.raises(UsageError, match="expected a trimesh.Trimesh"):
         collide.scan(dict(meshes, peg="peg"), trajectory, mode="discrete")
     assert load_trajectory(FIXTURE / "traj.h5").names == list(trajectory["names"])
+
+
+@pytest.mark.parametrize("mode", ["discrete", "continuous"])
+def test_stage_and_progress_callbacks_cover_the_whole_scan(mode):
+    """stage() names each stage in order; progress() counts every frame (and step) once."""
+    stages, done = [], []
+    result = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode=mode, stage=stages.append,
+                          progress=lambda d, total: done.append((d, total)))
+    assert [s.split(" (")[0] for s in stages] == ["loading inputs", "building BVHs", "preparing kernels", "scanning",
+                                                   "contact points"]
+    frames = result.frame_index.size
+    total = frames + (frames - 1 if mode == "continuous" else 0)
+    assert done[-1] == (total, total) and all(b[0] > a[0] for a, b in zip(done, done[1:]))

@@ -474,6 +474,8 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
     dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
     if continuous:
         check_motion(scene, ps, poses, index, interpolation, warn_angle)
+    if compiling is not None:
+        _compile_setup_kernels(poses)  # here, while the workers compile the big kernels
     _finish_warm_up(compiling)
     with _compile_note(continuous):
         _compile_kernels(ps, poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
@@ -500,10 +502,16 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0,
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+    _compile_setup_kernels(poses)
+
+
+def _compile_setup_kernels(poses):
+    """The small kernels of the contact points (warm-up unit "setup" with the BVH builder
+    and the motion checks, which run before this)."""
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
-    world_vertices(triangle, poses[0, 0])  # (contact points)
+    world_vertices(triangle, poses[0, 0])
 
 
 def _check_options(mode, interpolation, workers):

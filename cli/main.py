@@ -645,7 +645,17 @@ def main(argv=None):
         code = 128 + exc.signum
     finally:
         _restore_handlers(previous)
+    if _AS_PROGRAM:
+        _ignore_late_signals()
     sys.exit(code)
+
+
+def _ignore_late_signals():
+    """The command has ended (its output is complete): a stop signal from now on changes
+    nothing. Without this, Python's shutdown resets its signal handlers to the default,
+    and a signal in that last instant would kill the finished process (exit -N)."""
+    for signum in _STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
 
 
 def _install_handlers():

@@ -531,6 +531,13 @@ def _build_lbvh_kernels(box_lo, box_hi, centre, leaf_size):
     return lo, hi, first, count, prim_ids
 
 
+def builder_kernels(split):
+    """The numba kernels the ``split`` rule's builder calls (for compile notices)."""
+    if split == "lbvh":
+        return [_morton_codes, _radix_splits, _radix_layout, _refit, _sah_collapse]
+    return [_build]
+
+
 def build_bvh(box_lo, box_hi, centre, split="sah", leaf_size=None):
     """Build a BVH over n primitives.
 

@@ -9,12 +9,13 @@ import platform
 import time
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import ExitStack
+from contextlib import ExitStack, nullcontext
 
 import numpy as np
 
 from . import config
 from ._version import __version__
+from .bvh import builder_kernels
 from .closest import contact_point
 from .contacts import (
     KIND_SWEPT,
@@ -466,7 +467,9 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
     timings["load_s"] = time.perf_counter() - start
     continuous = mode == "continuous"
     stage(f"building BVHs ({len(scene.meshes)} meshes)")
-    with thread_limit(workers):  # a parallel builder (lbvh) uses at most the scan's threads
+    # a parallel builder (lbvh) uses at most the scan's threads. A rule's first use on a
+    # warm cache compiles its builder: say so (on a cold first run the warm-up says it all)
+    with thread_limit(workers), compile_notice(builder_kernels(split)) if compiling is None else nullcontext():
         ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
                                             build_bvh=mesh_cache.build_mesh_bvh)
     start = time.perf_counter()

@@ -18,6 +18,12 @@ kernel for a chunk of steps. Per step:
 4. triangles: certified CCD (narrow.swept_contact_window) gives the object
    pair's first and last contact during the step, over all its triangle pairs.
 
+The frame tests (discrete.scan_frames) have already found which object pairs
+touch at each frame: a pair touching at both frames of a step touches from its
+start to its end (the step's window runs from the earliest to the latest
+contact), so it is not searched; a pair touching at one frame is searched for
+the other end only.
+
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
 sub-steps (motion.substeps), each a small screw motion of its own with tight

@@ -150,13 +150,13 @@ def _sah_best_plane(ids, start, stop, box_lo, box_hi, centre, c_lo, c_hi, n_bins
     best_pos = 0.0
     for axis in range(3):
         extent = c_hi[axis] - c_lo[axis]
-        if not extent > 0.0:
-            continue
+        scale = n_bins / extent if extent > 0.0 else np.inf
+        if not scale < np.inf:
+            continue  # one centre, or a subnormal extent (0 * inf would make a NaN bin)
         # 1. bin the centres, 2. accumulate each bin's box and count
         bin_lo = np.full((n_bins, 3), np.inf)
         bin_hi = np.full((n_bins, 3), -np.inf)
         bin_n = np.zeros(n_bins, np.int64)
-        scale = n_bins / extent
         for k in range(start, stop):
             p = ids[k]
             b = min(int((centre[p, axis] - c_lo[axis]) * scale), n_bins - 1)
@@ -204,7 +204,7 @@ def _split_sah(ids, start, stop, box_lo, box_hi, centre, lo, hi, c_lo, c_hi,
     if count <= leaf_size and (axis < 0 or area <= 0.0
                                or traversal_cost + cost / area >= count):
         return -1
-    if axis < 0:  # all centres coincide: any balanced split is as good
+    if axis < 0:  # all centres coincide (or spread subnormally): any balanced split is as good
         return _split_in_halves(ids, start, stop, centre, _longest_axis(lo, hi))
     mid = _partition(ids, start, stop, centre, axis, position)
     if mid == start or mid == stop:

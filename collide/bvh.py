@@ -214,7 +214,7 @@ def _split_sah(ids, start, stop, box_lo, box_hi, centre, lo, hi, c_lo, c_hi,
 
 # --- the builder ---------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _build(box_lo, box_hi, centre, rule, leaf_size, n_bins, traversal_cost):
     n = box_lo.shape[0]
     max_nodes = max(2 * n - 1, 1)

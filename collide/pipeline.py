@@ -471,7 +471,7 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
     # warm cache compiles its builder: say so (on a cold first run the warm-up says it all)
     with thread_limit(workers), compile_notice(builder_kernels(split)) if compiling is None else nullcontext():
         ps, timings["build_s"] = pack_scene(scene.meshes, scene.object_mesh, split, leaf_size,
-                                            build_bvh=mesh_cache.build_mesh_bvh)
+                                            build_bvh=mesh_cache.build_mesh_bvh, workers=workers)
     start = time.perf_counter()
     stage("preparing kernels")
     dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)

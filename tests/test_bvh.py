@@ -169,3 +169,14 @@ def test_thread_limit_caps_and_restores_numba_threads():
     with thread_limit(10**6):
         assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
     assert numba.get_num_threads() == before
+
+
+@pytest.mark.parametrize("split", ["sah", "median"])
+def test_meshes_built_in_threads_pack_the_same_scene(split):
+    """pack_scene(workers=3) builds several meshes at once: the same arrays as one by one."""
+    from collide.packed import pack_scene
+    meshes = [load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj"), load_mesh(DATA / "rob.obj")]
+    one, _ = pack_scene(meshes, np.array([0, 1, 2, 1]), split, 3, workers=1)
+    three, _ = pack_scene(meshes, np.array([0, 1, 2, 1]), split, 3, workers=3)
+    for name, array in one._asdict().items():
+        assert np.array_equal(getattr(three, name), array), name

@@ -115,36 +115,70 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
 
 # --- continuous (swept) tests -------------------------------------------------------------
 
-@njit(cache=True)
-def _swept_triangle_boxes_overlap(p0, p1, q0, q1, margin):
-    """Boxes of the 6 positions of each triangle (both ends of the step) overlap, each
-    widened by margin (length units).
+#: relative rounding allowance of the moving-box windows (a few ulps of the coordinates)
+_WINDOW_ULPS = 8.0 * 2.0 ** -52
 
-    Under linear vertex motion a moving triangle stays in the convex hull of its
-    corners' start and end positions; under the screw motion within its deviation
-    bound of it (motion.py), which the caller adds to the margin.
+
+@njit(cache=True)
+def _clip_rising(f0, f1, t_lo, t_hi):
+    """Restrict [t_lo, t_hi] to where f(t) = f0 + t (f1 - f0) >= 0 (widened by 1e-12 in t
+    for the rounding of the root); empty (t_lo > t_hi) when f < 0 on all of [0, 1]."""
+    if f0 >= 0.0 and f1 >= 0.0:
+        return t_lo, t_hi
+    if f0 < 0.0 and f1 < 0.0:
+        return 1.0, 0.0
+    root = f0 / (f0 - f1)
+    if f0 < 0.0:
+        return max(t_lo, root - 1e-12), t_hi
+    return t_lo, min(t_hi, root + 1e-12)
+
+
+@njit(cache=True)
+def _swept_window(p0, p1, q0, q1, margin):
+    """(t_lo, t_hi) in [0, 1]: outside it the two moving triangles cannot come within
+    margin (length units) of each other; t_lo > t_hi when they never do.
+
+    Under linear vertex motion a triangle's box at fraction t of the step lies inside
+    the linear blend of its corners' boxes at both ends (each corner's coordinate is
+    the blend of its end coordinates); under screw motion within its deviation bound
+    of it (motion.py), which the caller adds to margin. Two such blended boxes overlap,
+    per axis, on an interval of t found from two linear functions; the margin grows
+    by a few ulps of the coordinates for rounding.
     """
+    t_lo = 0.0
+    t_hi = 1.0
     for c in range(3):
-        p_lo = min(p0[0, c], p0[1, c], p0[2, c], p1[0, c], p1[1, c], p1[2, c])
-        p_hi = max(p0[0, c], p0[1, c], p0[2, c], p1[0, c], p1[1, c], p1[2, c])
-        q_lo = min(q0[0, c], q0[1, c], q0[2, c], q1[0, c], q1[1, c], q1[2, c])
-        q_hi = max(q0[0, c], q0[1, c], q0[2, c], q1[0, c], q1[1, c], q1[2, c])
-        if p_hi + margin < q_lo or q_hi + margin < p_lo:
-            return False
-    return True
+        p_lo0 = min(p0[0, c], p0[1, c], p0[2, c])
+        p_hi0 = max(p0[0, c], p0[1, c], p0[2, c])
+        p_lo1 = min(p1[0, c], p1[1, c], p1[2, c])
+        p_hi1 = max(p1[0, c], p1[1, c], p1[2, c])
+        q_lo0 = min(q0[0, c], q0[1, c], q0[2, c])
+        q_hi0 = max(q0[0, c], q0[1, c], q0[2, c])
+        q_lo1 = min(q1[0, c], q1[1, c], q1[2, c])
+        q_hi1 = max(q1[0, c], q1[1, c], q1[2, c])
+        size = max(abs(p_lo0), abs(p_hi0), abs(p_lo1), abs(p_hi1), abs(q_lo0), abs(q_hi0), abs(q_lo1), abs(q_hi1))
+        m = margin + _WINDOW_ULPS * size
+        t_lo, t_hi = _clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)  # p's top above q's bottom
+        t_lo, t_hi = _clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)  # q's top above p's bottom
+        if t_lo > t_hi:
+            break
+    return t_lo, t_hi
 
 
 @njit(cache=True)
 def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
                       world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
-    """Triangle pairs (tri_a, tri_b) of the leaf pairs whose boxes over the step, widened
-    by dist_tol, both triangles' deviation bounds and rounding margins, overlap.
-    Returns (out int64 (cap, 2), n), rows sorted by (tri_a, tri_b)."""
+    """Triangle pairs (tri_a, tri_b) of the leaf pairs whose moving boxes, widened by
+    dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
+    moment of the step (_swept_window). Returns (out int64 (cap, 2), n, windows float64
+    (n, 2)): rows sorted by (tri_a, tri_b), windows their (t_lo, t_hi)."""
     p0 = np.empty((3, 3))
     p1 = np.empty((3, 3))
     q0 = np.empty((3, 3))
     q1 = np.empty((3, 3))
     row = np.empty(2, np.int64)
+    times = np.empty(2)
+    windows = np.empty((16, 2))
     n = np.int64(0)
     eta = motion_a[M_ETA] + motion_b[M_ETA]
     for k in range(n_leaves):
@@ -161,13 +195,15 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
                 gather_triangle(world1, world_base_b, faces, face_base_b + tri_b, q1)
                 dev = dev_p + point_deviation(motion_b, q0)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
-                if _swept_triangle_boxes_overlap(p0, p1, q0, q1, dist_tol + dev + eta):
+                times[0], times[1] = _swept_window(p0, p1, q0, q1, dist_tol + dev + eta)
+                if times[0] <= times[1]:
                     row[0] = tri_a
                     row[1] = tri_b
+                    windows, _ = append_row(windows, n, times)
                     out, n = append_row(out, n, row)
     order = np.argsort(out[:n, 0] * (out[:n, 1].max() + 1) + out[:n, 1]) if n > 0 else np.arange(0)
     out[:n] = out[:n][order]
-    return out, n
+    return out, n, windows[:n][order]
 
 
 @njit(cache=True)
@@ -181,35 +217,42 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     motion.triangle_pair_contact, under the objects' motion rows motion_a and
     motion_b), and the smallest pair touching at t_first; t_first = inf when none
     touches. A contact that ends and starts again within the step is reported as one
-    (the step is the resolution of gaps). Every triangle pair's search only looks
-    for contacts that could still move t_first (or t_last), so most pairs stop early.
+    (the step is the resolution of gaps). Pairs are searched in order of the earliest
+    (latest) moment their moving boxes meet, and each search only looks for contacts
+    that could still move t_first (t_last); the searches stop once no remaining pair's
+    boxes meet early (late) enough to move it.
     With find_first False only t_last is searched (t_first stays inf, t_last is -inf
     when none touches); with find_last False only t_first (t_last is returned as
     t_first: the caller knows better). candidates: int64 (cap, 2) scratch, grown and returned;
     counts: int64 rows.COUNT_* counters.
     """
-    candidates, n = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
-                                      face_base_b, world0, world1, world_base_a, world_base_b,
-                                      motion_a, motion_b, dist_tol, candidates, counts)
+    candidates, n, windows = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
+                                               face_base_b, world0, world1, world_base_a, world_base_b,
+                                               motion_a, motion_b, dist_tol, candidates, counts)
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = ccd_work()
     t_first = np.inf
     best_a = -1
     best_b = -1
-    for k in range(n if find_first else 0):  # earliest contact; sorted: ties keep the smaller pair
+    by_start = np.argsort(windows[:, 0], kind="mergesort")  # stable: ties stay in (tri_a, tri_b) order
+    for i in range(n if find_first else 0):  # earliest contact
+        k = by_start[i]
+        if windows[k, 0] > t_first:
+            break  # no later pair's boxes meet before the contact found
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
                                t_first, np.bool_(False), corners, work, counts)
-        if t < t_first:
-            t_first = t
+        if t < t_first or (t == t_first and t < np.inf and (candidates[k, 0] < best_a or (
+                candidates[k, 0] == best_a and candidates[k, 1] < best_b))):
+            t_first = t  # ties keep the smaller pair
             best_a = candidates[k, 0]
             best_b = candidates[k, 1]
-            if t_first == 0.0:
-                break
     t_last = t_first if find_first else -np.inf  # the last contact is no earlier than the first
-    for k in range(n if find_last else 0):
-        if (find_first and t_first == np.inf) or t_last == 1.0:
-            break
+    by_end = np.argsort(-windows[:, 1], kind="mergesort")
+    for i in range(n if find_last else 0):
+        k = by_end[i]
+        if (find_first and t_first == np.inf) or t_last == 1.0 or windows[k, 1] < t_last:
+            break  # no remaining pair's boxes meet after the contact found
         t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
                                t_last, np.bool_(True), corners, work, counts)

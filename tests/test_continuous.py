@@ -169,3 +169,26 @@ def test_frame_contacts_are_keyed_by_frame_and_pair():
     keys, tris = frame_contacts(hits, np.array([False, False, True, True]), 4)
     assert keys.tolist() == sorted(step_pair_key(k, a, b, 4) for k, a, b in found[:4])
     assert tris.tolist() == [[1, 11], [2, 12], [3, 13], [0, 10]]
+
+
+def test_moving_box_window_holds_every_moment_the_boxes_meet():
+    """narrow._swept_window against sampling: wherever the boxes of the two triangles
+    (corners blended linearly) come within the margin, t lies inside the window."""
+    from collide.narrow import _swept_window
+    rng = np.random.default_rng(11)
+    samples = np.linspace(0.0, 1.0, 1001)
+    inside = 0
+    for _ in range(100):
+        p0, q0 = rng.normal(size=(3, 3)), rng.normal(size=(3, 3)) + rng.normal(size=3) * 2
+        p1 = p0 + rng.normal(size=3) * 2 + rng.normal(size=(3, 3)) * 0.3
+        q1 = q0 + rng.normal(size=3) * 2
+        margin = abs(rng.normal()) * 0.1
+        t_lo, t_hi = _swept_window(p0, p1, q0, q1, margin)
+        for t in samples:
+            p = p0 + t * (p1 - p0)
+            q = q0 + t * (q1 - q0)
+            meet = (p.max(axis=0) + margin >= q.min(axis=0)).all() and (q.max(axis=0) + margin >= p.min(axis=0)).all()
+            if meet:
+                inside += 1
+                assert t_lo <= t <= t_hi, (t, t_lo, t_hi)
+    assert inside > 0

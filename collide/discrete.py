@@ -363,18 +363,18 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
 
 
 @njit(cache=True)
-def smallest_touching_pairs(ps, poses, static, frame, wanted):
+def smallest_touching_pairs(ps, poses, static, frame, wanted, min_prim):
     """The smallest intersecting triangle pair of each object pair wanted[k] = (a, b)
     (int64 (K, 2)) at ``frame``: int64 (K, 2) rows (tri_a, tri_b), (-1, -1) where a pair
     does not touch. The same pair as the smallest of scan_frames' collected pairs,
-    found without enumerating them."""
+    found without enumerating them. min_prim: min_prim_ids of ps (computed once per
+    scene by the caller)."""
     n_objects = poses.shape[1]
     rp = poses[frame]
     world = np.empty((ps.world_start[n_objects], 3))
     stamp = np.full(ps.world_start[n_objects], -1, np.int64)
     margin = np.empty(n_objects)
     object_margins(ps, rp, rp, margin)
-    min_prim = min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids)
     stack = np.empty((64, 2), np.int64)
     counts = np.zeros(COUNT_WIDTH, np.int64)
     out = np.empty((wanted.shape[0], 2), np.int64)

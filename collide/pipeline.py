@@ -25,7 +25,7 @@ from .contacts import (
     intervals_from_steps,
     sort_columns,
 )
-from .discrete import scan_frames, smallest_touching_pairs
+from .discrete import min_prim_ids, scan_frames, smallest_touching_pairs
 from .errors import InputError, UsageError
 from .filters import build_filters, describe
 from .jit import kernel_cache_dir, thread_limit
@@ -247,11 +247,12 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
     search (discrete.smallest_touching_pairs) per such frame, of just the object pairs
     that need it."""
     steps, _, from_hit = where
+    min_prim = min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids) if from_hit.any() else None
     for f in np.unique(steps[from_hit]):
         rows = np.flatnonzero(from_hit & (steps == f))
         wanted = np.ascontiguousarray(np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1),
                                       dtype=np.int64)
-        smallest = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted)
+        smallest = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted, min_prim)
         if (smallest < 0).any():
             raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
         contacts["tri_a"][rows] = smallest[:, 0]
@@ -505,7 +506,8 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0,
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
+                            min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
     _compile_setup_kernels(poses)
 
 

@@ -166,8 +166,9 @@ def _scan_frames(ps, poses, static, pairs):
 def _smallest_touching_pairs(ps, poses, static, pairs):
     import numpy as np
 
-    from .discrete import smallest_touching_pairs
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+    from .discrete import min_prim_ids, smallest_touching_pairs
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
+                            min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
 
 
 def _scan_intervals(ps, poses, static, pairs):
@@ -206,7 +207,9 @@ _KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_to
 
 
 if __name__ == "__main__":
+    # a worker process (see start): its only output, on the pipe its parent reads, is
+    # the compile time in seconds
     total = 0.0
     for name in sys.argv[1:]:
         total += compile_unit(name)
-    print(f"{total:.3f}")
+    sys.stdout.write(f"{total:.3f}\n")

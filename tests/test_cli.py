@@ -139,7 +139,7 @@ def test_interrupt_exits_130_and_leaves_no_file(tmp_path):
     assert list(tmp_path.glob(".c.h5*")) == [] and not out.exists()
 
 
-def test_interrupt_while_writing_keeps_the_old_output(two_boxes, tmp_path, monkeypatch):
+def test_interrupt_while_writing_keeps_the_old_output(two_boxes, tmp_path, monkeypatch, request):
     """Ctrl-C that arrives while the file is being written (h5py would swallow it in a
     cleanup callback) still ends the write: no new file, no temporary file, old output kept."""
     import collide.output as output
@@ -153,6 +153,10 @@ def test_interrupt_while_writing_keeps_the_old_output(two_boxes, tmp_path, monke
         return real_columns(*args)
 
     monkeypatch.setattr(output, "_write_columns", interrupted_columns)
+    # Ctrl-C must reach Python even where this test process was started with SIGINT
+    # ignored (a background job of a non-interactive shell)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    request.addfinalizer(lambda: signal.signal(signal.SIGINT, previous))
     with pytest.raises(KeyboardInterrupt):
         collide.scan(meshes, traj, mode="discrete", output=out)
     assert out.read_bytes() == b"old" and list(tmp_path.glob(".c.h5*")) == []

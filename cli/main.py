@@ -87,7 +87,7 @@ def _configure_logging():
     matplotlib, ...) only with -vv, never Python's bare last-resort output."""
     logger = logging.getLogger("collide")
     if not logger.handlers:
-        handler = logging.StreamHandler(sys.stderr)
+        handler = _StderrHandler()
         handler.setFormatter(_OneLineFormatter("collide: %(levelname)s: %(message)s"))
         logger.addHandler(handler)
         logger.propagate = False
@@ -102,6 +102,25 @@ def _configure_logging():
     if _state["verbosity"] > 1 and handler is not None and handler not in root.handlers:
         root.addHandler(handler)
         root.setLevel(logging.DEBUG)
+    elif _state["verbosity"] <= 1 and handler in root.handlers:
+        root.removeHandler(handler)
+
+
+class _StderrHandler(logging.StreamHandler):
+    """A log handler writing to whatever ``sys.stderr`` is when a line is logged (as
+    click.echo does), so that a caller redirecting stderr around ``main`` gets the log
+    lines too."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value):
+        pass
 
 
 def _warning_to_log(message, category, filename, lineno, file=None, line=None):
@@ -689,6 +708,8 @@ def _error(text):
 
 def _run(argv):
     """Run the command line; returns the exit code."""
+    _state["verbosity"] = 0  # -v/-q count per run (main may be called several times)
+    _configure_logging()
     try:
         cli.main(args=argv, prog_name="collide", standalone_mode=False)
     except click.exceptions.Exit as exc:

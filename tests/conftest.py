@@ -1,4 +1,6 @@
 """Shared helpers: writing small scenes and running the real CLI in a subprocess."""
+import contextlib
+import io
 import os
 import subprocess
 import sys
@@ -84,11 +86,34 @@ def write_box(path, extents=(1.0, 1.0, 1.0), centre=(0.0, 0.0, 0.0)):
     return path
 
 
-def run_cli(*args, cwd=None, env=None):
-    """Run ``collide`` as a real process; returns CompletedProcess (text)."""
-    full_env = dict(os.environ, **(env or {}))
-    return subprocess.run([sys.executable, "-m", "collide_cli.main", *map(str, args)],
-                          cwd=cwd, env=full_env, capture_output=True, text=True, timeout=600)
+def run_cli(*args, cwd=None, env=None, process=False):
+    """Run ``collide`` with these arguments; returns CompletedProcess (text).
+
+    By default the command line's own entry point (``collide_cli.main.main``, what the
+    ``collide`` program runs) is called in this test process, with stdout and stderr
+    captured: the same code, without paying a new interpreter's imports and kernel
+    loading for every call. ``process=True`` (implied by ``cwd`` or ``env``) runs it as
+    a real process, for what only a process shows (signals, exit by the interpreter,
+    environment read at start-up)."""
+    if process or cwd is not None or env:
+        full_env = dict(os.environ, **(env or {}))
+        return subprocess.run([sys.executable, "-m", "collide_cli.main", *map(str, args)],
+                              cwd=cwd, env=full_env, capture_output=True, text=True, timeout=600)
+    return run_in_process(*args)
+
+
+def run_in_process(*args):
+    """``collide ARGS`` through collide_cli.main.main in this process (see run_cli)."""
+    from collide_cli.main import main
+    argv = [str(a) for a in args]
+    out, err = io.StringIO(), io.StringIO()
+    code = 0
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            main(argv)
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+    return subprocess.CompletedProcess(["collide", *argv], code, out.getvalue(), err.getvalue())
 
 
 @pytest.fixture

@@ -1,4 +1,5 @@
-"""The command line through a real process: outputs, summaries, exit codes."""
+"""The command line: outputs, summaries, exit codes (run in the test process by
+run_cli, checked against real processes in test_in_process_runs_match_real_processes)."""
 import json
 import os
 import signal
@@ -25,6 +26,40 @@ def test_version_and_help():
     for option in ("--mode", "--split", "--leaf-size", "--triangle-pairs", "--frames", "--fail-on-contact",
                    "--workers", "--scheduler", "-q", "-v", "--output"):
         assert option in proc.stdout
+
+
+def test_in_process_runs_match_real_processes(two_boxes, tmp_path):
+    """run_cli's in-process runs (what most CLI tests use) give what the real program
+    gives: exit code, stdout, stderr and output file, for a scan with findings, a report,
+    a bad input and a bad command line."""
+    from conftest import run_in_process
+    meshes, traj = two_boxes
+    commands = [("scan", meshes, traj, "-o", tmp_path / "{}.h5", "--mode", "discrete", "--triangle-pairs",
+                 "--fail-on-contact", "--format", "json"),
+                ("report", tmp_path / "xreal.h5", "--format", "csv"),
+                ("scan", meshes, tmp_path / "missing.h5", "-o", tmp_path / "{}-bad.h5"),
+                ("scan", meshes, traj, "--mode", "sideways", "-o", tmp_path / "{}-usage.h5")]
+    for command in commands:
+        real = run_cli(*(str(a).format("xreal") for a in command), process=True)
+        here = run_in_process(*(str(a).format("xhere") for a in command))
+        assert real.returncode == here.returncode and real.returncode in (0, 1, 2), (command, real.stderr)
+        assert _same_output(real.stdout.replace("xreal", "xhere"), here.stdout), command
+        assert real.stderr.replace("xreal", "xhere") == here.stderr, command
+    process = collide.read_contacts(tmp_path / "xreal.h5").contacts
+    inproc = collide.read_contacts(tmp_path / "xhere.h5").contacts
+    assert process.keys() == inproc.keys()
+    for key in process:
+        assert np.array_equal(process[key], inproc[key]), key
+
+
+def _same_output(a, b):
+    """Equal outputs; for JSON summaries, apart from times and mesh-cache use."""
+    try:
+        a, b = json.loads(a), json.loads(b)
+    except ValueError:
+        return a == b
+    return {k: v for k, v in a.items() if k not in ("seconds", "cache")} == \
+        {k: v for k, v in b.items() if k not in ("seconds", "cache")}
 
 
 def test_scan_writes_spec_file_and_summary(two_boxes, tmp_path):

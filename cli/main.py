@@ -643,8 +643,9 @@ def warmup(modes, workers):
     from collide.jit import kernel_cache_dir
     from collide.warmup import warm_up
 
-    def progress(unit, seconds):
-        click.echo(f"{unit}: {seconds:.1f} s")
+    def progress(units, seconds):
+        click.echo(f"{units}: " + ("failed (a scan compiles what it needs itself)" if seconds is None
+                                   else f"{seconds:.1f} s"))
     _, seconds = warm_up(modes or ("discrete", "continuous"), workers, progress)
     click.echo(f"kernels ready in {seconds:.1f} s -> {kernel_cache_dir()}")
 

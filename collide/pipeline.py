@@ -434,21 +434,38 @@ def _compile_note(continuous):
 
 def _start_warm_up(mode):
     """On a machine whose kernel cache does not hold this mode's kernels yet, start
-    compiling the big ones (collide.warmup) in worker processes while the scan loads
-    its inputs; None when the cache is warm or there is one core only."""
+    compiling them (collide.warmup) in worker processes while the scan loads its
+    inputs, one process per core, the scan's own process included: it compiles the
+    set-up kernels, and more units if that shares the work best. Returns (workers,
+    units the scan compiles itself), or None when the cache is warm or there is one
+    core only."""
     from . import warmup
-    if warmup.is_warm(mode) or (os.cpu_count() or 1) < 2:
+    processes = os.cpu_count() or 1
+    if warmup.is_warm(mode) or processes < 2:
         return None
-    return warmup.start([u for u in warmup.MODE_UNITS[mode] if u != "setup"])
+    units = [u for u in warmup.MODE_UNITS[mode] if u != "setup"]
+    own, *groups = warmup.plan(units, min(processes, len(units) + 1), busy=[["setup"]])
+    return warmup.start(groups), own[1:]
 
 
 def _finish_warm_up(compiling):
-    """Wait for the warm-up workers (announcing it: this is a cold first run)."""
+    """Compile the scan's own share of the warm-up, then wait for the workers
+    (announcing it: this is a cold first run)."""
     if compiling is None:
         return
-    announce(f"compiling collide's numba kernels for this machine in {len(compiling.processes)} more processes "
-             f"(first run only: about a minute; later runs load them from {kernel_cache_dir()})")
-    _, seconds = compiling.finish()
+    from . import warmup
+    workers, own = compiling
+    processes = len(workers.processes)
+    announce(f"compiling collide's numba kernels for this machine here and in {processes} more "
+             f"process{'es' if processes > 1 else ''} (first run only: about a minute; later runs load them "
+             f"from {kernel_cache_dir()})")
+    try:
+        for unit in own:
+            warmup.compile_unit(unit)
+    except BaseException:
+        workers.stop()
+        raise
+    _, seconds = workers.finish()
     announce(f"compiled the kernels in {seconds:.0f} s")
 
 
@@ -563,7 +580,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
             glob, max_memory, allow_external_data, cache, compiling, workers, stage)
     finally:
         if compiling is not None:
-            compiling.stop()
+            compiling[0].stop()
     frame_time = scene.time[index]
     continuous = mode == "continuous"
     cache_stats = timings.pop("cache")

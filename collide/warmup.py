@@ -30,9 +30,27 @@ UNITS = {
     "continuous": ("scan_intervals",),
     "discrete": ("scan_frames", "smallest_touching_pairs"),
     "setup": ("bvh", "motion", "contact_point"),
+    "lbvh": ("lbvh",),
 }
-#: which units a scan of each mode needs
+#: which units a scan of each mode needs (``lbvh``: only scans with ``--split lbvh``)
 MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("continuous", "discrete", "setup")}
+#: seconds each unit takes to compile alone (2-core machine, numba 0.68): for sharing
+#: units among processes so that the longest process ends first possible
+COMPILE_SECONDS = {"continuous": 75.0, "discrete": 40.0, "setup": 18.0, "lbvh": 12.0}
+
+
+def plan(units, processes, busy=()):
+    """Share ``units`` among ``processes`` processes, longest unit first to the least
+    loaded process (each process compiles its units one after another: a unit never
+    waits for a core). ``busy``: units already given to the first processes (the
+    scan's own process, say). Returns one list of units per process, in order."""
+    groups = [list(b) for b in busy] + [[] for _ in range(max(1, processes) - len(busy))]
+    load = [sum(COMPILE_SECONDS.get(u, 1.0) for u in group) for group in groups]
+    for unit in sorted(units, key=lambda u: -COMPILE_SECONDS.get(u, 1.0)):
+        least = min(range(len(groups)), key=lambda i: (load[i], i))
+        groups[least].append(unit)
+        load[least] += COMPILE_SECONDS.get(unit, 1.0)
+    return groups
 
 
 # --- is the cache warm? ------------------------------------------------------------------------
@@ -70,30 +88,32 @@ def mark_warm(mode):
 # --- worker processes --------------------------------------------------------------------------
 
 class Workers:
-    """Worker processes compiling units; ``finish`` waits for them, ``stop`` ends them."""
+    """Worker processes, each compiling a group of units one after another; ``finish``
+    waits for them, ``stop`` ends them."""
 
-    def __init__(self, units):
+    def __init__(self, groups):
         package_parent = str(Path(__file__).resolve().parent.parent)
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH")) if p)
         self.start = time.perf_counter()
-        self.units = list(units)
-        self.processes = [subprocess.Popen([sys.executable, "-m", "collide.warmup", unit], env=env,
+        self.groups = [list(group) for group in groups if group]
+        self.processes = [subprocess.Popen([sys.executable, "-m", "collide.warmup", *group], env=env,
                                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                            stderr=subprocess.DEVNULL, text=True)
-                          for unit in self.units]
+                          for group in self.groups]
 
     def finish(self, progress=None):
-        """Wait for every worker; progress(unit, seconds) as each ends. Returns {unit:
-        seconds} (None for a worker that failed: the scan then compiles what it lacks
-        itself) and the wall time."""
+        """Wait for every worker; progress(units, seconds) as each ends ("a+b" for a
+        group). Returns {units: seconds} (None for a worker that failed: the scan then
+        compiles what it lacks itself) and the wall time."""
         seconds = {}
         try:
-            for unit, process in zip(self.units, self.processes):
+            for group, process in zip(self.groups, self.processes):
                 out, _ = process.communicate()
-                seconds[unit] = float(out.split()[-1]) if process.returncode == 0 and out.split() else None
+                name = "+".join(group)
+                seconds[name] = float(out.split()[-1]) if process.returncode == 0 and out.split() else None
                 if progress is not None:
-                    progress(unit, seconds[unit])
+                    progress(name, seconds[name])
         except BaseException:
             self.stop()
             raise
@@ -107,22 +127,19 @@ class Workers:
             process.wait()
 
 
-def start(units):
-    """Workers compiling ``units`` (names of UNITS), one process each."""
-    return Workers(units)
+def start(groups):
+    """Workers compiling ``groups`` (lists of names of UNITS), one process per group."""
+    return Workers(groups)
 
 
-def warm_up(modes=("discrete", "continuous"), workers=None, progress=None):
-    """Compile (or load) the kernels that scans of ``modes`` need: every unit in a process
-    of its own, up to ``workers`` at a time (default: all at once). Returns ({unit:
-    seconds}, wall seconds)."""
-    units = [u for u in UNITS if any(u in MODE_UNITS[mode] for mode in modes)]
-    batch = max(1, workers or len(units))
-    seconds = {}
+def warm_up(modes=("discrete", "continuous"), workers=None, progress=None, extra=()):
+    """Compile (or load) the kernels that scans of ``modes`` need, and the ``extra``
+    units: shared among ``workers`` processes (default: one per core) by ``plan``.
+    Returns ({units: seconds}, wall seconds)."""
+    units = [u for u in UNITS if u in extra or any(u in MODE_UNITS[mode] for mode in modes)]
+    processes = min(len(units), max(1, workers or os.cpu_count() or 1))
     started = time.perf_counter()
-    for first in range(0, len(units), batch):
-        done, _ = start(units[first:first + batch]).finish(progress)
-        seconds.update(done)
+    seconds, _ = start(plan(units, processes)).finish(progress)
     if all(s is not None for s in seconds.values()):
         for mode in modes:
             mark_warm(mode)
@@ -182,6 +199,14 @@ def _bvh(ps, poses, static, pairs):
     pass  # compile_unit's pack_scene has built the BVHs with the real builder
 
 
+def _lbvh(ps, poses, static, pairs):
+    import numpy as np
+
+    from .bvh import build_bvh
+    lo = np.arange(12.0).reshape(4, 3)
+    build_bvh(lo, lo + 1.0, lo + 0.5, split="lbvh", leaf_size=1)
+
+
 def _motion(ps, poses, static, pairs):
     import numpy as np
 
@@ -202,7 +227,7 @@ def _contact_point(ps, poses, static, pairs):
 
 
 _KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_touching_pairs,
-            "scan_intervals": _scan_intervals, "bvh": _bvh, "motion": _motion,
+            "scan_intervals": _scan_intervals, "bvh": _bvh, "lbvh": _lbvh, "motion": _motion,
             "contact_point": _contact_point}
 
 

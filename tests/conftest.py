@@ -37,7 +37,7 @@ def pytest_configure(config):
         return  # a pytest-xdist worker: the controller has done it
     from collide import warmup
     if not (warmup.is_warm("discrete") and warmup.is_warm("continuous")):
-        warmup.warm_up(("discrete", "continuous"))
+        warmup.warm_up(("discrete", "continuous"), extra=("lbvh",))  # lbvh: the tests build with every rule
 
 
 @pytest.fixture(autouse=True, scope="session")

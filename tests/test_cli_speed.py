@@ -206,3 +206,27 @@ def test_first_scan_announces_compiling_and_warm_scan_says_nothing(two_boxes, tm
     assert any((tmp_path / "kernels").rglob("*.nbi"))
     warm = run_cli("scan", meshes, traj, "-o", tmp_path / "b.h5", "--mode", "discrete", env=env)
     assert warm.returncode == 0 and "compil" not in warm.stderr, warm.stderr
+
+
+def test_warm_up_plan_shares_units_nearly_as_well_as_the_best_split(monkeypatch):
+    """plan (longest unit first to the least loaded process) gives every unit once, keeps
+    the busy units where they were, and its longest process is within Graham's 4/3 of
+    the best split found by trying every assignment."""
+    import itertools
+
+    import numpy as np
+
+    from collide import warmup
+    rng = np.random.default_rng(3)
+    for _ in range(40):
+        n_units, processes = int(rng.integers(1, 7)), int(rng.integers(1, 4))
+        costs = {f"u{i}": float(rng.integers(1, 100)) for i in range(n_units)}
+        monkeypatch.setattr(warmup, "COMPILE_SECONDS", costs)
+        groups = warmup.plan(list(costs), processes)
+        assert len(groups) == processes and sorted(sum(groups, [])) == sorted(costs)
+        longest = max(sum(costs[u] for u in g) for g in groups)
+        best = min(max(sum(c for c, p in zip(costs.values(), owner) if p == k) for k in range(processes))
+                   for owner in itertools.product(range(processes), repeat=n_units))
+        assert longest <= best * 4 / 3 + 1e-9, (costs, groups)
+    monkeypatch.setattr(warmup, "COMPILE_SECONDS", {"a": 10.0, "b": 5.0, "setup": 8.0})
+    assert warmup.plan(["a", "b"], 2, busy=[["setup"]]) == [["setup", "b"], ["a"]]

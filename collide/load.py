@@ -6,6 +6,7 @@ any work starts, so a bad input never costs a long run or a broken output.
 import errno
 import fnmatch
 import io
+import json
 import logging
 import os
 import re
@@ -19,6 +20,7 @@ import numpy as np
 from . import config
 from .errors import InputError, UsageError, escape_text
 from .files import (
+    cache_dir,
     check_memory,
     declared_size,
     hdf5_object,
@@ -58,10 +60,41 @@ MESHES_FOLDER = "a folder of mesh files (STL, OBJ, PLY, OFF, GLB, ...)"
 MESH_FILE = "a valid triangle mesh file"
 
 
+def trimesh_version():
+    """The installed trimesh's version, without importing trimesh (half a second)."""
+    from importlib.metadata import version
+    return version("trimesh")
+
+
 def _mesh_suffixes():
+    """File suffixes trimesh loads as meshes ({".stl", ".obj", ...}). Asking trimesh
+    means importing it (half a second, most of a warm run's start-up), so the answer is
+    kept in the cache folder per trimesh version and read from there when it is sound."""
+    path = _suffix_file()
+    try:
+        known = json.loads(path.read_text())
+        if isinstance(known, list) and known and all(
+                isinstance(s, str) and re.fullmatch(r"\.[a-z0-9_]{1,15}", s) for s in known):
+            return set(known)
+    except (OSError, ValueError, AttributeError):
+        pass  # not there yet, unreadable or not ours: ask trimesh
     import trimesh
     # point clouds (xyz) can never hold triangles; everything else trimesh reads as a mesh counts
-    return {"." + ext.lower() for ext in trimesh.exchange.load.mesh_formats() if ext != "xyz"}
+    suffixes = {"." + ext.lower() for ext in trimesh.exchange.load.mesh_formats() if ext != "xyz"}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_name(f".{path.name}.{os.getpid()}")
+        temporary.write_text(json.dumps(sorted(suffixes)))
+        os.replace(temporary, path)
+    except (OSError, AttributeError):
+        pass  # no cache folder: ask trimesh next time too
+    return suffixes
+
+
+def _suffix_file():
+    """Where _mesh_suffixes keeps trimesh's answer (None-safe: a path that may not exist)."""
+    root = cache_dir()
+    return (root if root is not None else Path("/nonexistent")) / f"trimesh-{trimesh_version()}-mesh-suffixes.json"
 
 
 def mesh_files(folder, glob=None):

@@ -199,9 +199,9 @@ def _check_hex(sha256_hex):
 
 def mesh_key(suffix, sha256_hex):
     """Everything a parsed mesh depends on: dict of JSON values."""
-    import trimesh
+    from .load import trimesh_version
     return {"kind": "mesh", "format": CACHE_FORMAT, "collide": __version__, "loader": LOADER_VERSION,
-            "trimesh": trimesh.__version__, "numpy": np.__version__, "suffix": suffix.lower(),
+            "trimesh": trimesh_version(), "numpy": np.__version__, "suffix": suffix.lower(),
             "sha256": _check_hex(sha256_hex), "max_coordinate": config.MAX_COORDINATE}
 
 

@@ -69,9 +69,10 @@ MODES = ("continuous", "discrete")
 def versions():
     import h5py
     import numba
-    import trimesh
+
+    from .load import trimesh_version
     return {"collide": __version__, "python": platform.python_version(), "numpy": np.__version__,
-            "numba": numba.__version__, "trimesh": trimesh.__version__, "h5py": h5py.__version__}
+            "numba": numba.__version__, "trimesh": trimesh_version(), "h5py": h5py.__version__}
 
 
 def _sha256(path):

@@ -116,6 +116,20 @@ def run_in_process(*args):
     return subprocess.CompletedProcess(["collide", *argv], code, out.getvalue(), err.getvalue())
 
 
+def signal_when_scanning(proc, folder, signum, timeout=120):
+    """Send ``signum`` to the scan ``proc`` once it writes its output's temporary file in
+    ``folder`` (inputs loaded, kernels ready: the scan itself has begun). False if the
+    process ended first."""
+    import time
+    deadline = time.monotonic() + timeout
+    while not any(p.name.startswith(".") for p in folder.iterdir()):
+        if proc.poll() is not None or time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+    proc.send_signal(signum)
+    return True
+
+
 @pytest.fixture
 def two_boxes(tmp_path):
     """Meshes folder with a static unit box 'fixed' at the origin and a unit box 'mover'

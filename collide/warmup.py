@@ -36,7 +36,7 @@ UNITS = {
 MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("continuous", "discrete", "setup")}
 #: seconds each unit takes to compile alone (2-core machine, numba 0.68): for sharing
 #: units among processes so that the longest process ends first possible
-COMPILE_SECONDS = {"continuous": 75.0, "discrete": 40.0, "setup": 18.0, "lbvh": 12.0}
+COMPILE_SECONDS = {"continuous": 60.0, "discrete": 38.0, "setup": 18.0, "lbvh": 12.0}
 
 
 def plan(units, processes, busy=()):

@@ -138,12 +138,13 @@ def _swept_window(p0, p1, q0, q1, margin):
     """(t_lo, t_hi) in [0, 1]: outside it the two moving triangles cannot come within
     margin (length units) of each other; t_lo > t_hi when they never do.
 
-    Under linear vertex motion a triangle's box at fraction t of the step lies inside
-    the linear blend of its corners' boxes at both ends (each corner's coordinate is
-    the blend of its end coordinates); under screw motion within its deviation bound
-    of it (motion.py), which the caller adds to margin. Two such blended boxes overlap,
-    per axis, on an interval of t found from two linear functions; the margin grows
-    by a few ulps of the coordinates for rounding.
+    Under linear vertex motion a triangle's extent along any axis n at fraction t of the
+    step lies inside the linear blend of its extents at both ends (the largest n.x over
+    the corners is convex in t); under screw motion within its deviation bound of it
+    (motion.py), which the caller adds to margin. Two such blended extents overlap on an
+    interval of t found from two linear functions. The axes: x, y, z (the corner boxes),
+    then both triangles' normals at the step's start, which separate close, nearly
+    parallel faces that boxes do not. The margin grows by a few ulps for rounding.
     """
     t_lo = 0.0
     t_hi = 1.0
@@ -161,8 +162,56 @@ def _swept_window(p0, p1, q0, q1, margin):
         t_lo, t_hi = _clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)  # p's top above q's bottom
         t_lo, t_hi = _clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)  # q's top above p's bottom
         if t_lo > t_hi:
-            break
+            return t_lo, t_hi
+    size = 0.0
+    for i in range(3):
+        for c in range(3):
+            size = max(size, abs(p0[i, c]), abs(p1[i, c]), abs(q0[i, c]), abs(q1[i, c]))
+    t_lo, t_hi = _clip_along_normal(p0, p0, p1, q0, q1, margin, size, t_lo, t_hi)
+    if t_lo <= t_hi:
+        t_lo, t_hi = _clip_along_normal(q0, p0, p1, q0, q1, margin, size, t_lo, t_hi)
     return t_lo, t_hi
+
+
+@njit(cache=True)
+def _clip_along_normal(triangle, p0, p1, q0, q1, margin, size, t_lo, t_hi):
+    """_swept_window's test along the normal n of ``triangle`` (3, 3): [t_lo, t_hi]
+    restricted to where the blended extents of p and q along n come within margin |n|;
+    unchanged when the normal is zero or not finite (a degenerate or huge triangle).
+    ``size``: the largest |coordinate| of the four corner sets, for the rounding of the
+    dot products (at most a few ulps of |n|_1 size)."""
+    ux = triangle[1, 0] - triangle[0, 0]
+    uy = triangle[1, 1] - triangle[0, 1]
+    uz = triangle[1, 2] - triangle[0, 2]
+    vx = triangle[2, 0] - triangle[0, 0]
+    vy = triangle[2, 1] - triangle[0, 1]
+    vz = triangle[2, 2] - triangle[0, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    length = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if not length > 0.0 or not np.isfinite(length):
+        return t_lo, t_hi
+    # rounding: a few ulps of |n|_1 size, and 1e-300 for products that underflow
+    m = margin * length * (1.0 + _WINDOW_ULPS) + _WINDOW_ULPS * size * (abs(nx) + abs(ny) + abs(nz)) + 1e-300
+    p_lo0, p_hi0 = _extent(p0, nx, ny, nz)
+    p_lo1, p_hi1 = _extent(p1, nx, ny, nz)
+    q_lo0, q_hi0 = _extent(q0, nx, ny, nz)
+    q_lo1, q_hi1 = _extent(q1, nx, ny, nz)
+    t_lo, t_hi = _clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)
+    return _clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)
+
+
+@njit(cache=True)
+def _extent(corners, nx, ny, nz):
+    """(min, max) of n . corner over the three corners (3, 3)."""
+    lo = np.inf
+    hi = -np.inf
+    for i in range(3):
+        d = nx * corners[i, 0] + ny * corners[i, 1] + nz * corners[i, 2]
+        lo = min(lo, d)
+        hi = max(hi, d)
+    return lo, hi
 
 
 @njit(cache=True)

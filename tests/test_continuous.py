@@ -171,24 +171,65 @@ def test_frame_contacts_are_keyed_by_frame_and_pair():
     assert tris.tolist() == [[1, 11], [2, 12], [3, 13], [0, 10]]
 
 
-def test_moving_box_window_holds_every_moment_the_boxes_meet():
-    """narrow._swept_window against sampling: wherever the boxes of the two triangles
-    (corners blended linearly) come within the margin, t lies inside the window."""
+def _triangle_distance(p, q):
+    """Distance between two triangles (3, 3) by python-fcl (a peer library); <= 0 when
+    they intersect."""
+    fcl = pytest.importorskip("fcl")
+
+    def body(t):
+        model = fcl.BVHModel()
+        model.beginModel(3, 1)
+        model.addSubModel(np.ascontiguousarray(t), np.array([[0, 1, 2]]))
+        model.endModel()
+        return fcl.CollisionObject(model, fcl.Transform())
+    return fcl.distance(body(p), body(q), fcl.DistanceRequest(), fcl.DistanceResult())
+
+
+def test_moving_window_holds_every_moment_the_triangles_come_close():
+    """narrow._swept_window against sampling with python-fcl's triangle distance:
+    wherever two linearly moving triangles come within the margin, t lies inside the
+    window. Half the pairs are nearly parallel faces a small gap apart (where the
+    normal axes, not the boxes, decide)."""
     from collide.narrow import _swept_window
     rng = np.random.default_rng(11)
-    samples = np.linspace(0.0, 1.0, 1001)
-    inside = 0
-    for _ in range(100):
-        p0, q0 = rng.normal(size=(3, 3)), rng.normal(size=(3, 3)) + rng.normal(size=3) * 2
-        p1 = p0 + rng.normal(size=3) * 2 + rng.normal(size=(3, 3)) * 0.3
-        q1 = q0 + rng.normal(size=3) * 2
-        margin = abs(rng.normal()) * 0.1
+    samples = np.linspace(0.0, 1.0, 201)
+    inside = empty = 0
+    for k in range(120):
+        p0 = rng.normal(size=(3, 3))
+        if k % 2:
+            normal = np.cross(p0[1] - p0[0], p0[2] - p0[0])
+            normal /= np.linalg.norm(normal)
+            q0 = p0 + normal * rng.uniform(-0.2, 0.2) + rng.normal(size=(3, 3)) * 0.02 + rng.normal(size=3) * 0.3
+            p1 = p0 + rng.normal(size=3) * 0.3 + rng.normal(size=(3, 3)) * 0.02
+            q1 = q0 + rng.normal(size=3) * 0.3
+        else:
+            q0 = rng.normal(size=(3, 3)) + rng.normal(size=3) * 2
+            p1 = p0 + rng.normal(size=3) * 2 + rng.normal(size=(3, 3)) * 0.3
+            q1 = q0 + rng.normal(size=3) * 2
+        margin = abs(rng.normal()) * 0.05
         t_lo, t_hi = _swept_window(p0, p1, q0, q1, margin)
+        empty += t_lo > t_hi
         for t in samples:
-            p = p0 + t * (p1 - p0)
-            q = q0 + t * (q1 - q0)
-            meet = (p.max(axis=0) + margin >= q.min(axis=0)).all() and (q.max(axis=0) + margin >= p.min(axis=0)).all()
-            if meet:
+            if _triangle_distance(p0 + t * (p1 - p0), q0 + t * (q1 - q0)) <= margin * (1 - 1e-9):
                 inside += 1
-                assert t_lo <= t <= t_hi, (t, t_lo, t_hi)
-    assert inside > 0
+                assert t_lo <= t <= t_hi, (k, t, t_lo, t_hi)
+    assert inside > 0 and empty > 0
+
+
+def test_normal_axes_separate_close_parallel_faces_that_boxes_do_not():
+    """Two parallel triangles tilted to every coordinate axis, 0.1 apart and sliding
+    along their plane: their boxes overlap all along, their normals keep them apart."""
+    from collide.narrow import _swept_window
+    p0 = np.array([[0.0, 0.0, 0.0], [1.0, -1.0, 0.0], [1.0, 0.0, -1.0]])
+    normal = np.cross(p0[1] - p0[0], p0[2] - p0[0])
+    normal /= np.linalg.norm(normal)
+    q0 = p0 + 0.1 * normal
+    slide = p0[1] - p0[0]
+    p1, q1 = p0 + 0.2 * slide, q0 - 0.2 * slide
+    for t in np.linspace(0, 1, 11):
+        p, q = p0 + t * (p1 - p0), q0 + t * (q1 - q0)
+        assert (p.max(axis=0) >= q.min(axis=0)).all() and (q.max(axis=0) >= p.min(axis=0)).all()
+    t_lo, t_hi = _swept_window(p0, p1, q0, q1, 0.05)
+    assert t_lo > t_hi
+    t_lo, t_hi = _swept_window(p0, p1, q0, q1, 0.11)  # within the margin: the whole step
+    assert (t_lo, t_hi) == (0.0, 1.0)

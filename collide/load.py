@@ -72,29 +72,33 @@ def _mesh_suffixes():
     kept in the cache folder per trimesh version and read from there when it is sound."""
     path = _suffix_file()
     try:
-        known = json.loads(path.read_text())
+        known = json.loads(path.read_text()) if path is not None else None
         if isinstance(known, list) and known and all(
                 isinstance(s, str) and re.fullmatch(r"\.[a-z0-9_]{1,15}", s) for s in known):
             return set(known)
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError):
         pass  # not there yet, unreadable or not ours: ask trimesh
     import trimesh
     # point clouds (xyz) can never hold triangles; everything else trimesh reads as a mesh counts
     suffixes = {"." + ext.lower() for ext in trimesh.exchange.load.mesh_formats() if ext != "xyz"}
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+    if path is not None:
         temporary = path.with_name(f".{path.name}.{os.getpid()}")
-        temporary.write_text(json.dumps(sorted(suffixes)))
-        os.replace(temporary, path)
-    except (OSError, AttributeError):
-        pass  # no cache folder: ask trimesh next time too
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            temporary.write_text(json.dumps(sorted(suffixes)))
+            os.replace(temporary, path)
+        except OSError:  # no writable cache folder: ask trimesh next time too
+            try:
+                temporary.unlink()
+            except OSError:
+                pass
     return suffixes
 
 
 def _suffix_file():
-    """Where _mesh_suffixes keeps trimesh's answer (None-safe: a path that may not exist)."""
+    """Where _mesh_suffixes keeps trimesh's answer; None without a cache folder."""
     root = cache_dir()
-    return (root if root is not None else Path("/nonexistent")) / f"trimesh-{trimesh_version()}-mesh-suffixes.json"
+    return None if root is None else root / f"trimesh-{trimesh_version()}-mesh-suffixes.json"
 
 
 def mesh_files(folder, glob=None):

@@ -148,6 +148,7 @@ def _swept_window(p0, p1, q0, q1, margin):
     """
     t_lo = 0.0
     t_hi = 1.0
+    largest = 0.0  # |coordinate| over all axes, for the normals' rounding margin
     for c in range(3):
         p_lo0 = min(p0[0, c], p0[1, c], p0[2, c])
         p_hi0 = max(p0[0, c], p0[1, c], p0[2, c])
@@ -158,18 +159,15 @@ def _swept_window(p0, p1, q0, q1, margin):
         q_lo1 = min(q1[0, c], q1[1, c], q1[2, c])
         q_hi1 = max(q1[0, c], q1[1, c], q1[2, c])
         size = max(abs(p_lo0), abs(p_hi0), abs(p_lo1), abs(p_hi1), abs(q_lo0), abs(q_hi0), abs(q_lo1), abs(q_hi1))
+        largest = max(largest, size)
         m = margin + _WINDOW_ULPS * size
         t_lo, t_hi = _clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)  # p's top above q's bottom
         t_lo, t_hi = _clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)  # q's top above p's bottom
         if t_lo > t_hi:
             return t_lo, t_hi
-    size = 0.0
-    for i in range(3):
-        for c in range(3):
-            size = max(size, abs(p0[i, c]), abs(p1[i, c]), abs(q0[i, c]), abs(q1[i, c]))
-    t_lo, t_hi = _clip_along_normal(p0, p0, p1, q0, q1, margin, size, t_lo, t_hi)
+    t_lo, t_hi = _clip_along_normal(p0, p0, p1, q0, q1, margin, largest, t_lo, t_hi)
     if t_lo <= t_hi:
-        t_lo, t_hi = _clip_along_normal(q0, p0, p1, q0, q1, margin, size, t_lo, t_hi)
+        t_lo, t_hi = _clip_along_normal(q0, p0, p1, q0, q1, margin, largest, t_lo, t_hi)
     return t_lo, t_hi
 
 

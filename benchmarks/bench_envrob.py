@@ -28,7 +28,7 @@ from collide.discrete import scan_frames  # noqa: E402
 from collide.filters import build_filters  # noqa: E402
 from collide.load import load_mesh  # noqa: E402
 from collide.packed import pack_scene  # noqa: E402
-from collide.pipeline import _run_discrete  # noqa: E402
+from collide.pipeline import TrianglePairs, _run_discrete  # noqa: E402
 
 DATA = HERE.parent / "tests" / "data"
 
@@ -55,7 +55,7 @@ def run_collide(env, rob, rot, trans, split, workers):
     out["yes/no"] = time.perf_counter() - t0
     out["colliding"] = set(hits[:, 0].tolist())
     t0 = time.perf_counter()
-    _run_discrete(ps, poses, static, filters, True, workers, None)
+    _run_discrete(ps, poses, n, 0, static, filters, TrianglePairs(), workers, None)
     out[f"all pairs, {workers} threads"] = time.perf_counter() - t0
     sets = [set() for _ in range(n)]
     for f, _, _, a, b in found.tolist():

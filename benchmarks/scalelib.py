@@ -479,10 +479,10 @@ def kernel_breakdown(meshes, trajectory, repeat=3, interpolation="screw"):
 
     scene = load_scene(meshes, trajectory)
     ps, _ = pack_scene(scene.meshes, scene.object_mesh)
-    poses = np.ascontiguousarray(scene.poses)
+    poses = scene.poses.read(0, scene.poses.n_frames)
     filters = build_filters(scene.names, (), (), scene.ignore, scene.trajectory_path)
     pairs = filters.kernel_filter(extra_ignore=scene.static)
-    dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
+    dist_tol = config.DIST_TOL_REL * scene_size(ps, scene.poses)
     code = INTERPOLATIONS[interpolation]
     n = poses.shape[0]
     start = time.perf_counter()

@@ -437,9 +437,9 @@ def _print_summary(result, output, fmt):
 @verbosity_options
 def validate(trajectory, meshes, allow_external_data, max_memory):
     """Check TRAJECTORY (and the MESHES folder, if given) as scan would; change nothing."""
-    from collide.load import load_scene, load_trajectory
+    from collide.load import check_trajectory, load_scene
     if meshes is None:
-        traj = load_trajectory(trajectory, allow_external=allow_external_data, max_memory=max_memory)
+        traj = check_trajectory(trajectory, allow_external=allow_external_data, max_memory=max_memory)
         click.echo(f"ok: {trajectory}: {traj.time.shape[0]} frames, {len(traj.names)} objects")
         return
     scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory)

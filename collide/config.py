@@ -98,6 +98,11 @@ PAIR_CHUNK_FRAMES = 8
 #: MB whatever the trajectory's length. Count.
 POSE_CHUNK = 65536
 
+#: A scan holds the poses of this many bytes of frames at a time (a block: at least
+#: 2 frames) and reads the next block from the trajectory file when it needs it, so
+#: that its memory does not grow with the trajectory's length. Bytes.
+POSE_BLOCK_BYTES = 64 * 2**20
+
 #: Estimated peak bytes per selected (frame, object) pose while a trajectory is
 #: read and scanned: the [R | p] array kept (12 float64), a second one when static
 #: meshes are added, and the per-pose checks of the whole scene. Bytes.

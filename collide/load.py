@@ -49,6 +49,7 @@ class Trajectory(NamedTuple):
     names: list           #: N object names
     mesh_files: list      #: N mesh file names or stems from objects/mesh, or None
     poses: np.ndarray     #: float64 (S, N, 3, 4) at the S selected frames: rows [R | p], world = R @ body + p
+    #: (None when load_trajectory was asked not to read them)
     pose_dataset: str = "poses/position"  #: where the positions came from (for messages)
     ignore: tuple = ()    #: (glob_a, glob_b) pairs of filters/ignore: object pairs never checked
     frame_index: np.ndarray = None  #: int64 (S,): the selected frames (indices into time)
@@ -482,11 +483,14 @@ def _check_positions(src, position, frames, dataset):
 
 
 def _read_frames(src, ds, name, frames, expected):
-    """float64 rows of ``ds`` (frames first) at the file frames ``frames`` (int64, evenly
-    spaced, increasing), checked finite; errors name file frame numbers."""
+    """float64 rows of ``ds`` (frames first) at the file frames ``frames`` (int64,
+    increasing; read as one slice when evenly spaced), checked finite; errors name file
+    frame numbers."""
     step = int(frames[1] - frames[0]) if frames.size > 1 else 1
+    even = frames.size < 3 or bool((np.diff(frames) == step).all())
     try:
-        data = np.asarray(ds[int(frames[0]):int(frames[-1]) + 1:step], dtype=np.float64)
+        rows = ds[int(frames[0]):int(frames[-1]) + 1:step] if even else ds[frames]
+        data = np.asarray(rows, dtype=np.float64)
     except (OSError, ValueError, TypeError, RuntimeError) as exc:
         raise InputError(src.path, f"cannot read ({str(exc)[:80]})", expected, dataset=name) from None
     if not np.isfinite(data).all():
@@ -555,7 +559,8 @@ def _poses_from_matrices(src, datasets, frames, order, out):
 def _read_poses(src, encoding, datasets, frames, n_objects):
     """Poses float64 (S, N, 3, 4) at the file frames ``frames`` (S,), read and converted
     config.POSE_CHUNK object-frames at a time, so that the conversion's temporaries stay
-    small whatever the number of frames (memory: the result, plus one chunk)."""
+    small whatever the number of frames (memory: the result, plus one chunk). Returns
+    (poses, largest quaternion norm error: 0.0 for matrices)."""
     poses = np.empty((frames.size, n_objects, 3, 4))
     order = _quaternion_order(src, datasets) if encoding == "quaternion" else None
     convert = _poses_from_quaternions if encoding == "quaternion" else _poses_from_matrices
@@ -564,10 +569,13 @@ def _read_poses(src, encoding, datasets, frames, n_objects):
     for start in range(0, frames.size, chunk):
         stop = min(start + chunk, frames.size)
         norm_error = max(norm_error, convert(src, datasets, frames[start:stop], order, poses[start:stop]))
+    return poses, norm_error
+
+
+def _warn_normalising(path, norm_error):
     if norm_error > 1e-12:
         log.warning("%s:poses/orientation: normalising quaternions (largest norm error %.2g)",
-                    escape_text(src.path), norm_error)
-    return poses
+                    escape_text(path), norm_error)
 
 
 def _trajectory_bytes(n_frames, n_selected, n_objects, n_string_columns):
@@ -577,7 +585,7 @@ def _trajectory_bytes(n_frames, n_selected, n_objects, n_string_columns):
             + n_selected * n_objects * config.POSE_BYTES)
 
 
-def load_trajectory(path, allow_external=False, max_memory=None, frames=None):
+def load_trajectory(path, allow_external=False, max_memory=None, frames=None, read_poses=True):
     """Read and validate a trajectory file (see README, "Trajectory").
 
     ``frames`` (None, a slice or "START:STOP[:STEP]") selects the frames whose poses
@@ -586,17 +594,19 @@ def load_trajectory(path, allow_external=False, max_memory=None, frames=None):
     Declared shapes are checked, and the memory they need estimated against
     ``max_memory`` (bytes or "4G"; default: files.memory_limit()), before any
     data is read. Unless ``allow_external``, data stored outside the file
-    (external links, external storage, virtual datasets) is refused. Returns a
-    Trajectory; raises InputError for anything else that is not as described.
+    (external links, external storage, virtual datasets) is refused. Without
+    ``read_poses`` the poses are left unread (None; read them with PoseFile). Returns
+    a Trajectory; raises InputError for anything else that is not as described.
     """
     path = Path(path)
     with open_hdf5(path, TRAJECTORY) as h5:
-        return _read_trajectory(h5, path, allow_external, max_memory, frames)
+        return _read_trajectory(h5, path, allow_external, max_memory, frames, read_poses)
 
 
-def _read_trajectory(h5, path, allow_external, max_memory, frames=None):
+def _read_trajectory(h5, path, allow_external, max_memory, frames=None, read_poses=True):
     """A Trajectory from an open h5py.File (a file's or an in-memory one); ``path`` names
-    it in messages."""
+    it in messages. Without ``read_poses`` its poses are left unread (None; see
+    PoseFile)."""
     with np.errstate(all="ignore"):
         src = _Source(h5, path, allow_external)
         try:
@@ -611,18 +621,153 @@ def _read_trajectory(h5, path, allow_external, max_memory, frames=None):
                                  "one mesh file name per object", dataset="objects/mesh")
             encoding, pose_ds = _pose_datasets(src, n_frames, n_objects)
             selected = select_frames(frames, n_frames)
-            check_memory(path, _trajectory_bytes(n_frames, len(selected), n_objects, 1 + (mesh_ds is not None)),
+            check_memory(path, _trajectory_bytes(n_frames, len(selected) if read_poses else 0, n_objects,
+                                                 1 + (mesh_ds is not None)),
                          memory_limit(max_memory), f"a trajectory of {len(selected)} frames and {n_objects} objects")
             index = np.arange(selected.start, selected.stop, selected.step, dtype=np.int64)
             time = _read_time(src, time_ds)
             names, mesh_entries = _read_names(src, names_ds, mesh_ds)
             ignore = _read_ignore(src) if _exists(src, "filters/ignore") else ()
-            poses = _read_poses(src, encoding, pose_ds, index, n_objects)
+            poses = None
+            if read_poses:
+                poses, norm_error = _read_poses(src, encoding, pose_ds, index, n_objects)
+                _warn_normalising(path, norm_error)
         except InputError:
             raise
         except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
             raise InputError(path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") from None
     return Trajectory(path, time, names, mesh_entries, poses, next(iter(pose_ds)), ignore, index)
+
+
+# --- poses, block by block ----------------------------------------------------------------------
+
+#: float64 values per pose: the rows [R | p] of a 3 x 4 transform
+POSE_VALUES = 12
+
+
+def block_frames(n_objects):
+    """Frames per block of poses (at least 2: a block holds a motion step), so that a block
+    of n_objects' poses takes about config.POSE_BLOCK_BYTES."""
+    return max(2, config.POSE_BLOCK_BYTES // (max(n_objects, 1) * POSE_VALUES * 8))
+
+
+def _with_static(listed, n_objects):
+    """Poses of the trajectory's objects (S, L, 3, 4) followed by those of the static
+    meshes' objects, at identity: float64 (S, n_objects, 3, 4)."""
+    if listed.shape[1] == n_objects:
+        return listed
+    poses = np.zeros((listed.shape[0], n_objects, 3, 4))
+    poses[:, :listed.shape[1]] = listed
+    poses[:, listed.shape[1]:, :, :3] = np.eye(3)
+    return poses
+
+
+class PoseSource:
+    """The poses of a scene's S selected frames, float64 (S, N, 3, 4) (rows [R | p],
+    world = R @ body + p), handed out a block of frames at a time: ``block`` frames of
+    N objects take about config.POSE_BLOCK_BYTES, whatever the trajectory's length."""
+    n_frames: int
+    n_objects: int
+    block: int
+
+    def read(self, start, stop):
+        """float64 (stop - start, N, 3, 4), C-contiguous: the poses of selected frames
+        [start, stop)."""
+        raise NotImplementedError
+
+    def read_checked(self, start, stop):
+        """(read(start, stop), largest quaternion norm error met reading them: 0.0 unless
+        they are read from a file)."""
+        return self.read(start, stop), 0.0
+
+    def at(self, frames):
+        """(poses, rows): the poses of the selected frames ``frames`` (int64, sorted, unique,
+        at most ``block`` of them) are poses[rows]."""
+        raise NotImplementedError
+
+    def blocks(self, overlap=0):
+        """Yield (start, poses) block by block, in order: the poses of selected frames
+        [start, start + block + overlap), cut at the last frame (overlap 1: each block also
+        holds the next block's first frame, so that it holds the motion steps in between)."""
+        for start in range(0, self.n_frames, self.block):
+            yield start, self.read(start, min(start + self.block + overlap, self.n_frames))
+
+
+class PoseArray(PoseSource):
+    """Poses held in memory: float64 (S, N, 3, 4), C-contiguous (one block)."""
+
+    def __init__(self, poses):
+        self.array = np.ascontiguousarray(poses, dtype=np.float64)
+        self.n_frames, self.n_objects = self.array.shape[:2]
+        self.block = max(self.n_frames, 1)
+
+    def read(self, start, stop):
+        return self.array[start:stop]
+
+    def at(self, frames):
+        return self.array, frames
+
+
+class PoseFile(PoseSource):
+    """Poses of a trajectory file's selected frames, read, checked and converted from the
+    file when asked for (the file is opened for each read), block by block.
+
+    frame_index int64 (S,): the selected frames (indices into the file's T frames);
+    n_listed: objects in the file; n_objects: with the static meshes' objects after
+    them, at identity.
+    """
+
+    def __init__(self, path, allow_external, n_file_frames, frame_index, n_listed, n_objects):
+        self.path, self.allow_external = Path(path), allow_external
+        self.n_file_frames, self.frame_index, self.n_listed = n_file_frames, frame_index, n_listed
+        self.n_frames, self.n_objects = frame_index.size, n_objects
+        self.block = block_frames(n_objects)
+
+    def read(self, start, stop):
+        return self.read_checked(start, stop)[0]
+
+    def at(self, frames):
+        return self._read(self.frame_index[frames])[0], np.arange(frames.size)
+
+    def read_checked(self, start, stop):
+        return self._read(self.frame_index[start:stop])
+
+    def _read(self, file_frames):
+        with np.errstate(all="ignore"), open_hdf5(self.path, TRAJECTORY) as h5:
+            src = _Source(h5, self.path, self.allow_external)
+            try:
+                encoding, datasets = _pose_datasets(src, self.n_file_frames, self.n_listed)
+                listed, norm_error = _read_poses(src, encoding, datasets, file_frames, self.n_listed)
+            except InputError:
+                raise
+            except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
+                raise InputError(self.path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") \
+                    from None
+        return _with_static(listed, self.n_objects), norm_error
+
+
+def check_trajectory(path, allow_external=False, max_memory=None):
+    """Validate a trajectory file as load_trajectory does, reading its poses a block at a
+    time (memory does not grow with its length beyond the frame times). Returns its
+    Trajectory, poses unread (None)."""
+    traj = load_trajectory(path, allow_external=allow_external, max_memory=max_memory, read_poses=False)
+    poses = PoseFile(traj.path, allow_external, traj.time.shape[0], traj.frame_index, len(traj.names),
+                     len(traj.names))
+    _warn_normalising(traj.path, _read_every_block(poses, lambda start, stop, block: None))
+    return traj
+
+
+def _read_every_block(poses, each):
+    """Read every pose of PoseSource ``poses`` once, block by block (a PoseFile checks what
+    it reads), calling each(start, stop, block) on the poses of selected frames [start,
+    stop). Returns the largest quaternion norm error met."""
+    norm_error = 0.0
+    for start in range(0, poses.n_frames, poses.block):
+        stop = min(start + poses.block, poses.n_frames)
+        block, error = poses.read_checked(start, stop)
+        norm_error = max(norm_error, error)
+        each(start, stop, block)
+    return norm_error
 
 
 # --- inputs in memory (Python API) ------------------------------------------------------------
@@ -685,7 +830,7 @@ class Scene(NamedTuple):
     meshes: list           #: M distinct Mesh objects
     object_mesh: np.ndarray  #: int64 (N,), index into meshes
     time: np.ndarray       #: float64 (T,): every frame's time
-    poses: np.ndarray      #: float64 (S, N, 3, 4) at the S selected frames
+    poses: PoseSource      #: float64 (S, N, 3, 4) at the S selected frames, block by block
     static: np.ndarray     #: bool (N,): identity pose at every selected frame
     trajectory_path: Path
     ignore: tuple = ()     #: the trajectory's filters/ignore pattern pairs
@@ -769,7 +914,8 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
     if isinstance(trajectory_path, Mapping):
         traj = trajectory_from_arrays(trajectory_path, max_memory, frames)
     else:
-        traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory, frames=frames)
+        traj = load_trajectory(trajectory_path, allow_external=allow_external, max_memory=max_memory, frames=frames,
+                               read_poses=False)
     dataset = "objects/name" if traj.mesh_files is None else "objects/mesh"
     entries = traj.names if traj.mesh_files is None else traj.mesh_files
     used = [_resolve_mesh(files, entry, traj.path, dataset) for entry in entries]
@@ -782,22 +928,44 @@ def load_scene(meshes_folder, trajectory_path, allow_external=False, max_memory=
                              "names that do not clash with static meshes", dataset="objects/name")
     n_frames, n_selected = traj.time.shape[0], traj.frame_index.size
     n_objects = len(traj.names) + len(static_paths)
-    check_memory(traj.path, _trajectory_bytes(n_frames, n_selected, n_objects, 2), memory_limit(max_memory),
-                 f"a scene of {n_selected} frames and {n_objects} objects")
+    check_memory(traj.path, _trajectory_bytes(n_frames, min(n_selected, block_frames(n_objects)), n_objects, 2),
+                 memory_limit(max_memory), f"a scene of {n_selected} frames and {n_objects} objects")
+    poses, norm_error = _pose_source(traj, allow_external, n_objects)
     mesh_paths = sorted(used_set) + static_paths
     mesh_loader = mesh_loader or load_mesh
     meshes = [in_memory[p.stem] if isinstance(p, MemoryMeshKey) else mesh_loader(p) for p in mesh_paths]
     index = {p: i for i, p in enumerate(mesh_paths)}
     object_mesh = np.array([index[p] for p in used + static_paths], dtype=np.int64)
     names = list(traj.names) + [p.stem for p in static_paths]
-    identity = np.zeros((3, 4))
-    identity[:, :3] = np.eye(3)
-    poses = traj.poses
-    if static_paths:  # the static meshes' objects come last, at identity
-        poses = np.empty((n_selected, n_objects, 3, 4))
-        poses[:, :len(traj.names)] = traj.poses
-        poses[:, len(traj.names):] = identity
-    _check_reach(names, meshes, object_mesh, poses, traj.frame_index, traj.path, traj.pose_dataset)
-    static = np.array([(poses[:, o] == identity).all() for o in range(n_objects)], dtype=bool)
+    static, block_error = _check_poses(poses, names, meshes, object_mesh, traj)
+    _warn_normalising(traj.path, max(norm_error, block_error))
     return Scene(names, meshes, object_mesh, traj.time, poses, static, traj.path, traj.ignore,
                  tuple(p.stem for p in static_paths), traj.frame_index)
+
+
+def _pose_source(traj, allow_external, n_objects):
+    """(PoseSource of the scene's n_objects, largest quaternion norm error of what was
+    read): poses held in memory when they were given in memory or fill one block (read
+    now), else a PoseFile that reads them block by block."""
+    if traj.poses is not None:  # given in memory, read and checked
+        return PoseArray(_with_static(traj.poses, n_objects)), 0.0
+    source = PoseFile(traj.path, allow_external, traj.time.shape[0], traj.frame_index, len(traj.names), n_objects)
+    if source.n_frames > source.block:
+        return source, 0.0
+    poses, norm_error = source.read_checked(0, source.n_frames)
+    return PoseArray(poses), norm_error
+
+
+def _check_poses(poses, names, meshes, object_mesh, traj):
+    """Read every pose once, block by block (PoseSource ``poses``), and check them
+    (_check_reach; a PoseFile checks what it reads). Returns (static: bool (N,), which
+    objects stay at identity at every selected frame, largest quaternion norm error)."""
+    identity = np.zeros((3, 4))
+    identity[:, :3] = np.eye(3)
+    static = np.ones(poses.n_objects, dtype=bool)
+
+    def check(start, stop, block):
+        _check_reach(names, meshes, object_mesh, block, traj.frame_index[start:stop], traj.path, traj.pose_dataset)
+        static[:] &= (block == identity).all(axis=(0, 2, 3))
+    norm_error = _read_every_block(poses, check)
+    return static, norm_error

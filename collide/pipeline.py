@@ -10,6 +10,7 @@ import time
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, nullcontext
+from typing import NamedTuple
 
 import numpy as np
 
@@ -45,6 +46,7 @@ from .rows import (
     HIT_TRI_A,
     HIT_TRI_B,
     HIT_WIDTH,
+    PAIR_FRAME,
     PAIR_WIDTH,
     SWEPT_A,
     SWEPT_B,
@@ -109,7 +111,7 @@ def _inputs(scene, trajectory, digests):
     """Provenance of the inputs: paths (or "<in memory>") and sha256 of each (digests:
     {path: sha256} already computed)."""
     if scene.trajectory_path == MEMORY_TRAJECTORY:
-        traj = {"path": "<in memory>", "sha256": _arrays_sha256(scene.time, scene.poses)}
+        traj = {"path": "<in memory>", "sha256": _arrays_sha256(scene.time, scene.poses.array)}
     else:
         traj = {"path": str(trajectory), "sha256": _sha256(scene.trajectory_path)}
     meshes = {mesh_label(m): _arrays_sha256(m.vertices, m.faces) if m.path is None
@@ -206,16 +208,17 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
     return list(zip(chunks, results))
 
 
-def _run_discrete(ps, poses, static, filters, pair_sink, workers, progress, scheduler=None):
-    """Frame hits (H, HIT_WIDTH) (rows.py) and work counts of all frames, for the object
-    pairs filters.Filters selects; with a pair_sink (TrianglePairs), every intersecting
-    triangle pair too, handed over chunk by chunk in output order.
+def _run_discrete(ps, poses, n_frames, offset, static, filters, pair_sink, workers, progress, scheduler=None):
+    """Frame hits (H, HIT_WIDTH) (rows.py) and work counts of frames [0, n_frames) of a
+    block of poses (T, N, 3, 4), for the object pairs filters.Filters selects; with a
+    pair_sink (TrianglePairs), every intersecting triangle pair too, handed over chunk by
+    chunk in output order. Frame numbers in the rows count from ``offset``, the block's
+    first selected frame.
 
     Without pair_sink each object pair's search stops at its first intersecting
     triangle pair (see smallest_pairs_at_frames for the reported pair). Pairs of static
     objects are tested once and repeated for every frame.
     """
-    n_frames = poses.shape[0]
     collect = pair_sink is not None
     static_hits = static_pairs = None
     counts = []
@@ -230,10 +233,51 @@ def _run_discrete(ps, poses, static, filters, pair_sink, workers, progress, sche
         hits.append(chunk_hits)
         counts.append(chunk_counts)
         if collect:
-            pair_sink.add(chunk_pairs, np.arange(start, stop), static_pairs)
+            chunk_pairs[:, PAIR_FRAME] += offset
+            pair_sink.add(chunk_pairs, np.arange(start, stop) + offset, static_pairs)
     if static_hits is not None:
         hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
-    return np.concatenate(hits).reshape(-1, HIT_WIDTH), _total_counts(counts)
+    hits = np.concatenate(hits).reshape(-1, HIT_WIDTH)
+    hits[:, HIT_FRAME] += offset
+    return hits, _total_counts(counts)
+
+
+def _scan_blocks(ps, poses, static, filters, pair_sink, continuous, interpolation, time_tol, dist_tol, workers,
+                 progress, scheduler=None):
+    """The frame tests and, when ``continuous``, the swept tests of every frame and motion
+    step, a block of poses (PoseSource) at a time: each block also holds the next one's
+    first frame, for the step in between. Returns (hits (H, HIT_WIDTH), swept ids (R,
+    SWEPT_WIDTH), swept fractions (R, TIMES_WIDTH), work counts), frames and steps
+    numbered from the first selected frame."""
+    hits, ids, fractions, counts = [], [], [], []
+    for offset, block in poses.blocks(overlap=1 if continuous else 0):
+        own = min(poses.block, block.shape[0])  # frames of this block; the rest is the next one's first
+        block_hits, block_counts = _run_discrete(ps, block, own, offset, static, filters, pair_sink, workers,
+                                                 progress, scheduler)
+        hits.append(block_hits)
+        counts.append(block_counts)
+        if continuous and block.shape[0] > 1:
+            known = block_hits
+            if block.shape[0] > own:  # what touches at the next block's first frame: only whether it does
+                next_hits, _, _ = scan_frames(ps, block, static, filters.kernel_filter(extra_ignore=static), own,
+                                              own + 1, False, True)
+                known = np.concatenate([block_hits, next_hits.reshape(-1, HIT_WIDTH) + _frame_shift(offset)])
+            block_ids, block_fractions, swept_counts = _run_swept(
+                ps, block, static, filters, known - _frame_shift(offset), interpolation, time_tol, dist_tol,
+                workers, progress, scheduler)
+            block_ids[:, SWEPT_STEP] += offset
+            ids.append(block_ids)
+            fractions.append(block_fractions)
+            counts.append(swept_counts)
+    return (np.concatenate(hits), np.concatenate(ids or [np.zeros((0, SWEPT_WIDTH), np.int64)]),
+            np.concatenate(fractions or [np.zeros((0, TIMES_WIDTH))]), _total_counts(counts))
+
+
+def _frame_shift(offset):
+    """int64 (HIT_WIDTH,): adds ``offset`` to a hit row's frame."""
+    shift = np.zeros(HIT_WIDTH, np.int64)
+    shift[HIT_FRAME] = offset
+    return shift
 
 
 def _total_counts(counts):
@@ -246,18 +290,28 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
     intersecting pair at that frame (hits found without collecting pairs hold the
     first pair found, which depends on the BVH and the chunks): one branch-and-bound
     search (discrete.smallest_touching_pairs) per such frame, of just the object pairs
-    that need it."""
+    that need it. poses: PoseSource (read a block of those frames at a time)."""
     steps, _, from_hit = where
     min_prim = min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids) if from_hit.any() else None
-    for f in np.unique(steps[from_hit]):
-        rows = np.flatnonzero(from_hit & (steps == f))
-        wanted = np.ascontiguousarray(np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1),
-                                      dtype=np.int64)
-        smallest = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted, min_prim)
-        if (smallest < 0).any():
-            raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
-        contacts["tri_a"][rows] = smallest[:, 0]
-        contacts["tri_b"][rows] = smallest[:, 1]
+    frames = np.unique(steps[from_hit])
+    for group in range(0, frames.size, poses.block):
+        group_frames = frames[group:group + poses.block]
+        block, block_rows = poses.at(group_frames)
+        for f, row in zip(group_frames, block_rows):
+            _smallest_pairs_at_frame(contacts, np.flatnonzero(from_hit & (steps == f)), ps, block, row, static, f,
+                                     min_prim)
+
+
+def _smallest_pairs_at_frame(contacts, rows, ps, poses, row, static, f, min_prim):
+    """smallest_pairs_at_frames for the contacts ``rows`` of frame f, whose poses are
+    poses[row] (float64 (N, 3, 4))."""
+    wanted = np.ascontiguousarray(np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1),
+                                  dtype=np.int64)
+    smallest = smallest_touching_pairs(ps, poses, static, np.int64(row), wanted, min_prim)
+    if (smallest < 0).any():
+        raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
+    contacts["tri_a"][rows] = smallest[:, 0]
+    contacts["tri_b"][rows] = smallest[:, 1]
 
 
 def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_tol, workers, progress,
@@ -349,54 +403,85 @@ class TrianglePairs:
 
 
 def scene_size(ps, poses):
-    """Diagonal of a box holding every object at every analysed frame (length units)."""
+    """Diagonal of a box holding every object at every analysed frame (length units);
+    poses: PoseSource."""
     centre = ps.centre[ps.object_mesh]                                    # (N, 3)
-    world = np.einsum("tnij,nj->tni", poses[..., :3], centre) + poses[..., 3]
     radius = ps.sphere_radius[ps.object_mesh][None, :, None]
-    return float(np.linalg.norm((world + radius).max(axis=(0, 1)) - (world - radius).min(axis=(0, 1))))
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for _, block in poses.blocks():
+        world = np.einsum("tnij,nj->tni", block[..., :3], centre) + block[..., 3]
+        lo = np.minimum(lo, (world - radius).min(axis=(0, 1)))
+        hi = np.maximum(hi, (world + radius).max(axis=(0, 1)))
+    return float(np.linalg.norm(hi - lo))
+
+
+class _Worst(NamedTuple):
+    """The largest value met so far of a per-(step, object) measure, where, and the
+    screw's turn angle (radians) and linear deviation (length units) there."""
+    value: float
+    step: int
+    obj: int
+    angle: float
+    deviation: float
+
+
+def _motion_summaries(ps, poses):
+    """Yield (first step, angle (K, N), deviation (K, N)) block by block of poses
+    (PoseSource): each object's screw turn angle per step (radians; -1 for half a turn)
+    and the largest distance between its straight vertex paths and its screw motion
+    (motion.motion_summary)."""
+    centres = np.ascontiguousarray(ps.centre[ps.object_mesh])
+    radii = np.ascontiguousarray(ps.sphere_radius[ps.object_mesh])
+    for start, block in poses.blocks(overlap=1):
+        if block.shape[0] < 2:
+            continue
+        summary = np.empty((block.shape[0] - 1, block.shape[1], 2))
+        motion_summary(block, centres, radii, summary)
+        yield start, summary[..., 0], summary[..., 1]
 
 
 def check_motion(scene, ps, poses, frame_index, interpolation, warn_angle):
-    """Check how objects turn between frames: raise InputError for a half turn under the
-    screw motion (its axis is ambiguous); warn (once, the worst case) when a screw turns
-    more than warn_angle degrees per frame, or when linear vertex paths depart from the
-    rigid motion by more than config.LINEAR_DEVIATION_WARN_REL of the object's size."""
-    if poses.shape[0] < 2:
-        return
-    centres = np.ascontiguousarray(ps.centre[ps.object_mesh])
-    radii = np.ascontiguousarray(ps.sphere_radius[ps.object_mesh])
-    summary = np.empty((poses.shape[0] - 1, poses.shape[1], 2))
-    motion_summary(poses, centres, radii, summary)
-    angle, deviation = summary[..., 0], summary[..., 1]
+    """Check how objects turn between frames (poses: PoseSource): raise InputError for a
+    half turn under the screw motion (its axis is ambiguous); warn (once, the worst case)
+    when a screw turns more than warn_angle degrees per frame, or when linear vertex
+    paths depart from the rigid motion by more than config.LINEAR_DEVIATION_WARN_REL of
+    the object's size."""
     names = scene.names
+    size = 2.0 * ps.sphere_radius[ps.object_mesh]
 
     def frames(step):
         return f"frames {frame_index[step]} and {frame_index[step + 1]}"
 
-    if interpolation == "screw":
-        if (angle < 0).any():
-            step, obj = np.argwhere(angle < 0)[0]
-            raise InputError(scene.trajectory_path, f"object {names[obj]!r} turns half a turn (180 degrees) "
-                             f"between {frames(step)}, so the direction of the turn is ambiguous",
-                             "less than half a turn per frame (sample the trajectory more finely)",
-                             dataset="poses")
-        degrees = np.degrees(angle)
-        above = degrees > warn_angle
-        if above.any():
-            step, obj = np.unravel_index(int(np.argmax(degrees)), degrees.shape)
-            log.warning("object %r turns by %.1f degrees between %s (%d steps above %g degrees); the "
-                        "trajectory is probably under-sampled: sample it more finely", names[obj],
-                        degrees[step, obj], frames(step), int(above.sum()), warn_angle)
+    worst, above = None, 0
+    for start, angle, deviation in _motion_summaries(ps, poses):
+        if interpolation == "screw":
+            if (angle < 0).any():
+                step, obj = np.argwhere(angle < 0)[0]
+                raise InputError(scene.trajectory_path, f"object {names[obj]!r} turns half a turn (180 degrees) "
+                                 f"between {frames(start + step)}, so the direction of the turn is ambiguous",
+                                 "less than half a turn per frame (sample the trajectory more finely)",
+                                 dataset="poses")
+            value = np.degrees(angle)
+            above += int((value > warn_angle).sum())
+        else:
+            value = np.where(angle < 0, np.inf, deviation / np.maximum(size, np.finfo(float).tiny))
+        step, obj = np.unravel_index(int(np.argmax(value)), value.shape)
+        if worst is None or value[step, obj] > worst.value:
+            worst = _Worst(value[step, obj], start + step, obj, angle[step, obj], deviation[step, obj])
+    if worst is None:
         return
-    size = 2.0 * radii
-    excess = np.where(angle < 0, np.inf, deviation / np.maximum(size, np.finfo(float).tiny))
-    step, obj = np.unravel_index(int(np.argmax(excess)), excess.shape)
-    if excess[step, obj] > config.LINEAR_DEVIATION_WARN_REL:
-        how = "by half a turn" if angle[step, obj] < 0 else f"up to {deviation[step, obj]:.3g} length units"
+    if interpolation == "screw":
+        if worst.value > warn_angle:
+            log.warning("object %r turns by %.1f degrees between %s (%d steps above %g degrees); the "
+                        "trajectory is probably under-sampled: sample it more finely", names[worst.obj],
+                        worst.value, frames(worst.step), above, warn_angle)
+        return
+    if worst.value > config.LINEAR_DEVIATION_WARN_REL:
+        how = "by half a turn" if worst.angle < 0 else f"up to {worst.deviation:.3g} length units"
         log.warning("object %r: between %s its straight vertex paths (--interpolation linear-vertex) depart "
                     "from its rigid motion %s (its size is %.3g; warning above %g of it); use "
-                    "--interpolation screw or sample the trajectory more finely", names[obj], frames(step),
-                    how, size[obj], config.LINEAR_DEVIATION_WARN_REL)
+                    "--interpolation screw or sample the trajectory more finely", names[worst.obj],
+                    frames(worst.step), how, size[worst.obj], config.LINEAR_DEVIATION_WARN_REL)
 
 
 def _fill_contact_points(contacts, where, scene, poses, interpolation):
@@ -404,25 +489,44 @@ def _fill_contact_points(contacts, where, scene, poses, interpolation):
 
     where = (step, u): the moment is fraction u of the step from frame step to
     step+1 (u = 0: the frame itself), where objects move as ``interpolation`` says.
+    poses: PoseSource, read for a block's worth of frames at a time.
     """
     steps, fractions, _ = where
+    order = np.argsort(steps, kind="stable")
+    sorted_steps = steps[order]
+    unique_steps = np.unique(steps)
+    per_group = max(1, poses.block // 2)  # a group's steps and the frames after them fill a block
+    for group in range(0, unique_steps.size, per_group):
+        group_steps = unique_steps[group:group + per_group]
+        frames = np.union1d(group_steps, np.minimum(group_steps + 1, poses.n_frames - 1))
+        block, block_rows = poses.at(frames)
+        row_of = dict(zip(frames.tolist(), block_rows.tolist()))
+        first = np.searchsorted(sorted_steps, group_steps[0], side="left")
+        last = np.searchsorted(sorted_steps, group_steps[-1], side="right")
+        for k in order[first:last]:
+            step, u = int(steps[k]), float(fractions[k])
+            rp1 = block[row_of[step + 1]] if u > 0.0 else None
+            _fill_contact_point(contacts, k, scene, block[row_of[step]], rp1, u, interpolation)
+
+
+def _fill_contact_point(contacts, k, scene, rp0, rp1, u, interpolation):
+    """contacts' point of row k: where its triangle pair touches at fraction u of the step
+    from poses rp0 to rp1 (float64 (N, 3, 4); rp1 unused when u = 0)."""
     motion = np.zeros(MOTION_WIDTH)
-    for k in range(contacts["object_a"].shape[0]):
-        step, u = steps[k], fractions[k]
-        tris = []
-        for side, tri in (("object_a", "tri_a"), ("object_b", "tri_b")):
-            o = contacts[side][k]
-            mesh = scene.meshes[scene.object_mesh[o]]
-            corners = mesh.vertices[mesh.faces[contacts[tri][k]]]
-            position = world_vertices(corners, poses[step, o])
-            if u > 0.0:
-                motion[:] = 0.0
-                if interpolation == "screw":
-                    screw_motion(poses[step, o], poses[step + 1, o], 0.0, motion)
-                points_at(motion, position.copy(), world_vertices(corners, poses[step + 1, o]), u, position)
-            tris.append(np.ascontiguousarray(position))
-        point, _ = contact_point(tris[0], tris[1])
-        contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
+    tris = []
+    for side, tri in (("object_a", "tri_a"), ("object_b", "tri_b")):
+        o = contacts[side][k]
+        mesh = scene.meshes[scene.object_mesh[o]]
+        corners = mesh.vertices[mesh.faces[contacts[tri][k]]]
+        position = world_vertices(corners, rp0[o])
+        if u > 0.0:
+            motion[:] = 0.0
+            if interpolation == "screw":
+                screw_motion(rp0[o], rp1[o], 0.0, motion)
+            points_at(motion, position.copy(), world_vertices(corners, rp1[o]), u, position)
+        tris.append(np.ascontiguousarray(position))
+    point, _ = contact_point(tris[0], tris[1])
+    contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
 
 
 def _compile_note(continuous):
@@ -474,7 +578,7 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
              glob, max_memory, allow_external_data, cache, compiling, workers, stage):
     """Load and check the inputs, build the BVHs, make the kernels ready (compiling, or
     waiting for the warm-up workers ``compiling``, on a first run). Returns (scene,
-    packed scene, poses (T, N, 3, 4), frame index, filters, dist_tol, timings)."""
+    packed scene, poses (load.PoseSource), frame index, filters, dist_tol, timings)."""
     timings = {}
     start = time.perf_counter()
     mesh_cache = MeshCache(enabled=cache)
@@ -496,11 +600,12 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
     dist_tol = config.DIST_TOL_REL * scene_size(ps, poses)
     if continuous:
         check_motion(scene, ps, poses, index, interpolation, warn_angle)
+    no_poses = np.zeros((1, poses.n_objects, 3, 4))  # a block's type, to compile or load the kernels with
     if compiling is not None:
-        _compile_setup_kernels(poses)  # here, while the workers compile the big kernels
+        _compile_setup_kernels()  # here, while the workers compile the big kernels
     _finish_warm_up(compiling)
     with _compile_note(continuous):
-        _compile_kernels(ps, poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
+        _compile_kernels(ps, no_poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
     _mark_warm(mode)
     timings["jit_s"] = time.perf_counter() - start
     timings["cache"] = {"enabled": bool(cache), **mesh_cache.stats.as_dict(), "digests": mesh_cache.digests}
@@ -526,15 +631,15 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
     smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
                             min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
-    _compile_setup_kernels(poses)
+    _compile_setup_kernels()
 
 
-def _compile_setup_kernels(poses):
+def _compile_setup_kernels():
     """The small kernels of the contact points (warm-up unit "setup" with the BVH builder
     and the motion checks, which run before this)."""
     triangle = np.ascontiguousarray(np.eye(3))
     contact_point(triangle, triangle)
-    world_vertices(triangle, poses[0, 0])
+    world_vertices(triangle, np.zeros((1, 1, 3, 4))[0, 0])
 
 
 def _check_options(mode, interpolation, workers):
@@ -598,12 +703,10 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         start = time.perf_counter()
         stage("scanning")
         work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
-        hits, counts = _run_discrete(ps, poses, scene.static, filters, pair_sink, workers, work, scheduler)
+        hits, ids, fractions, counts = _scan_blocks(ps, poses, scene.static, filters, pair_sink, continuous,
+                                                    interpolation, time_tol, dist_tol, workers, work, scheduler)
         if continuous:
-            ids, fractions, swept_counts = _run_swept(ps, poses, scene.static, filters, hits, interpolation,
-                                                      time_tol, dist_tol, workers, work, scheduler)
-            counts = counts + swept_counts
-            static_ids, static_fractions = _static_steps(hits, scene.static, poses.shape[0] - 1)
+            static_ids, static_fractions = _static_steps(hits, scene.static, index.size - 1)
             contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
                                                    np.concatenate([fractions, static_fractions]), hits, frame_time)
         else:

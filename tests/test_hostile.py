@@ -408,8 +408,8 @@ def test_coordinates_beyond_the_limit_are_refused(tmp_path_factory, position_exp
         return
     finally:
         catcher.__exit__(None, None, None)
-    world = np.einsum("tnij,vj->tnvi", scene.poses[:, :1, :, :3], scene.meshes[0].vertices) + \
-        scene.poses[:, :1, None, :, 3]
+    poses = scene.poses.read(0, scene.poses.n_frames)
+    world = np.einsum("tnij,vj->tnvi", poses[:, :1, :, :3], scene.meshes[0].vertices) + poses[:, :1, None, :, 3]
     assert np.abs(world).max() <= config.MAX_COORDINATE
 
 

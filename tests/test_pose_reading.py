@@ -4,13 +4,14 @@ those frames, and frames outside the selection are never read."""
 import h5py
 import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, identity_quaternions, write_box
+from conftest import write_trajectory as write_traj_file
 from scipy.spatial.transform import Rotation
 
 import collide
 from collide import config
 from collide.errors import InputError
-from collide.load import load_trajectory
+from collide.load import PoseFile, load_trajectory
 
 FIXTURE = REPO / "examples" / "fixture"
 
@@ -78,3 +79,96 @@ def test_errors_name_file_frames_when_reading_in_chunks(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="norm 2 at frame 33, object 0"):
         load_trajectory(traj)
     assert load_trajectory(traj, frames="0:33").poses.shape[0] == 33
+
+
+# --- scans that read their poses block by block ------------------------------------------------
+
+FIXTURE_OBJECTS = 5  # 3 in the trajectory, 2 static meshes
+
+
+def count_reads(monkeypatch):
+    """The selected-frame ranges a PoseFile reads, as a list that grows as it reads."""
+    reads = []
+    original = PoseFile.read_checked
+
+    def read_checked(self, start, stop):
+        reads.append((start, stop))
+        return original(self, start, stop)
+    monkeypatch.setattr(PoseFile, "read_checked", read_checked)
+    return reads
+
+
+@pytest.mark.parametrize("mode", ["discrete", "continuous"])
+@pytest.mark.parametrize("block, frames, pairs", [(2, "50:110", False), (7, "3:230:3", False),
+                                                  (5, "150:200", True)])
+def test_contacts_do_not_depend_on_pose_blocks(monkeypatch, mode, block, frames, pairs):
+    """A scan that holds a few frames' poses at a time, reading the next ones from the file
+    as it goes, finds the contacts (times, triangles, points) and triangle pairs of a
+    scan that holds every pose in memory."""
+    reference = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode=mode, frames=frames,
+                             triangle_pairs=pairs)
+    assert reference.contacts["object_a"].size > 0
+    monkeypatch.setattr(config, "POSE_BLOCK_BYTES", block * FIXTURE_OBJECTS * 12 * 8)
+    reads = count_reads(monkeypatch)
+    blocked = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode=mode, frames=frames, triangle_pairs=pairs)
+    n_frames = reference.frame_index.size
+    assert max(stop - start for start, stop in reads) <= block + 1  # a block and the next one's first frame
+    assert len(reads) >= 2 * (n_frames // block)  # every block checked once, then scanned
+    np.testing.assert_array_equal(blocked.frame_time, reference.frame_time)
+    for name, column in reference.contacts.items():
+        np.testing.assert_array_equal(blocked.contacts[name], column, err_msg=name)
+    if pairs:
+        assert reference.triangle_pairs["frame"].size > 0
+        for name, column in reference.triangle_pairs.items():
+            np.testing.assert_array_equal(blocked.triangle_pairs[name], column, err_msg=name)
+
+
+def test_bad_poses_in_a_later_block_are_refused_before_the_scan(tmp_path, monkeypatch):
+    """Read block by block, the poses are still all checked before any work starts: a bad
+    quaternion in the last block is named by its file frame, and no output is written."""
+    arrays = fixture_arrays()
+    arrays["poses/orientation"][230, 2] *= 3.0
+    traj = write_trajectory(tmp_path / "t.h5", arrays)
+    monkeypatch.setattr(config, "POSE_BLOCK_BYTES", 4 * FIXTURE_OBJECTS * 12 * 8)
+    reads = count_reads(monkeypatch)
+    with pytest.raises(InputError, match="norm 3 at frame 230, object 2"):
+        collide.scan(FIXTURE / "meshes", traj, output=tmp_path / "c.h5")
+    assert reads[-1][1] > 230 and len(reads) == 58
+    assert not (tmp_path / "c.h5").exists()
+
+
+def _far_apart_scene(folder, n_frames):
+    """Four boxes drifting side by side, never near each other, for n_frames frames."""
+    meshes = folder / "meshes"
+    meshes.mkdir(parents=True)
+    names = [f"box{i}" for i in range(4)]
+    for name in names:
+        write_box(meshes / f"{name}.stl")
+    position = np.zeros((n_frames, 4, 3))
+    position[:, :, 0] = np.arange(4) * 10.0
+    position[:, :, 1] = np.linspace(0.0, 5.0, n_frames)[:, None]
+    traj = write_traj_file(folder / "t.h5", np.arange(n_frames) * 0.01, names, position,
+                           identity_quaternions(n_frames, 4))
+    return meshes, traj
+
+
+@pytest.mark.parametrize("mode", ["discrete", "continuous"])
+def test_memory_does_not_grow_with_the_number_of_frames(tmp_path, monkeypatch, mode):
+    """With poses read a block at a time, ten times more frames cost only the per-frame
+    output (frame times: 8 bytes a frame, plus the file's time column and the frame
+    index), not the poses (96 bytes a frame for each of 4 objects): peak traced memory
+    of the scan (tracemalloc: numpy arrays) for 2 000 and 20 000 frames."""
+    import tracemalloc
+    monkeypatch.setattr(config, "POSE_BLOCK_BYTES", 500 * 4 * 12 * 8)
+    peaks = {}
+    for n_frames in (2000, 20000):
+        meshes, traj = _far_apart_scene(tmp_path / str(n_frames), n_frames)
+        collide.scan(meshes, traj, mode=mode, frames="0:10")  # kernels and imports ready: not counted
+        tracemalloc.start()
+        result = collide.scan(meshes, traj, mode=mode, workers=1)
+        peaks[n_frames] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert result.contacts["object_a"].size == 0 and result.frame_index.size == n_frames
+    grown = peaks[20000] - peaks[2000]
+    poses = 18000 * 4 * 12 * 8
+    assert grown < 64 * 18000 + 2**20, (peaks, poses)  # 64 bytes a frame for what the scan keeps per frame

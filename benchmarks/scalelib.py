@@ -452,7 +452,7 @@ def _swept_levels_kernel():
                 for o in (a, b):
                     ensure_world(ps, rp0, o, k, static, stamp0, world0)
                     ensure_world(ps, rp1, o, k + 1, static, stamp1, world1)
-                cand, n = _swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+                cand, n, _ = _swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
                                             world0, world1, ps.world_start[a], ps.world_start[b], motion[a],
                                             motion[b], dist_tol, cand, counts)

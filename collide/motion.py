@@ -344,14 +344,17 @@ def box_deviation(m, lo, hi, rp0):
     by pose rp0 (3, 4) at t = 0, plus the rounding margin; 0 for linear motion."""
     if m[M_THETA] == 0.0:
         return 0.0
-    c = np.empty(3)
     half = 0.0
     for i in range(3):
         half += (0.5 * (hi[i] - lo[i])) ** 2
-    for i in range(3):
-        c[i] = rp0[i, 3] + rp0[i, 0] * (0.5 * (lo[0] + hi[0])) + rp0[i, 1] * (0.5 * (lo[1] + hi[1])) \
-            + rp0[i, 2] * (0.5 * (lo[2] + hi[2]))
-    theta_rho = _theta_rho(m, c[0], c[1], c[2]) + m[M_THETA] * math.sqrt(half)
+    # the box's centre at t = 0, as scalars: this runs for every node pair of a descent
+    b0 = 0.5 * (lo[0] + hi[0])
+    b1 = 0.5 * (lo[1] + hi[1])
+    b2 = 0.5 * (lo[2] + hi[2])
+    c0 = rp0[0, 3] + rp0[0, 0] * b0 + rp0[0, 1] * b1 + rp0[0, 2] * b2
+    c1 = rp0[1, 3] + rp0[1, 0] * b0 + rp0[1, 1] * b1 + rp0[1, 2] * b2
+    c2 = rp0[2, 3] + rp0[2, 0] * b0 + rp0[2, 1] * b1 + rp0[2, 2] * b2
+    theta_rho = _theta_rho(m, c0, c1, c2) + m[M_THETA] * math.sqrt(half)
     return _bound(m, theta_rho) + m[M_ETA]
 
 

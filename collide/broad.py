@@ -228,19 +228,109 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
             continue
         if top + 2 > stack.shape[0]:
             stack = _grown(stack, top)
-        # open the node that is not a leaf, or the larger of two inner nodes
-        if leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb])):
-            child = first[na]
-            stack[top, 0] = child + 1
-            stack[top, 1] = nb
-            stack[top + 1, 0] = child
-            stack[top + 1, 1] = nb
+        _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top)
+        top += 2
+    counts[COUNT_LEAF_PAIRS] += k
+    return stack, top, out, k
+
+
+@njit(cache=True)
+def _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top):
+    """Replace node pair (na, nb) by the pairs of its children in stack rows top and
+    top + 1 (room for both must exist): open the node that is not a leaf, or the larger
+    of two inner nodes. Returns whether na was opened."""
+    if leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb])):
+        child = first[na]
+        stack[top, 0] = child + 1
+        stack[top, 1] = nb
+        stack[top + 1, 0] = child
+        stack[top + 1, 1] = nb
+        return True
+    child = first[nb]
+    stack[top, 0] = na
+    stack[top, 1] = child + 1
+    stack[top + 1, 0] = na
+    stack[top + 1, 1] = child
+    return False
+
+
+# --- level 2 under motion: boxes computed once per node, not once per node pair -----------
+
+#: columns of a swept descent's ``held`` rows: the world box of the node of its stack row
+#: that the row's parent pair did not open, and which side that node is on
+_HELD_SIDE = 6
+_HELD_NONE = 0.0
+_HELD_A = 1.0
+_HELD_B = 2.0
+
+
+@njit(cache=True)
+def _swept_node_box(lo, hi, n, rp0, rp1, m, margin):
+    """World box (lo x, y, z, hi x, y, z) holding node n over the step: its chord box
+    (motion.chord_interval between poses rp0 and rp1 (3, 4)) widened by margin and by its
+    deviation bound under motion row m (motion.box_deviation); the boxes of
+    _swept_boxes_overlap."""
+    d = margin + box_deviation(m, lo[n], hi[n], rp0)
+    x0, x1 = chord_interval(lo[n], hi[n], rp0, rp1, 0)
+    y0, y1 = chord_interval(lo[n], hi[n], rp0, rp1, 1)
+    z0, z1 = chord_interval(lo[n], hi[n], rp0, rp1, 2)
+    return x0 - d, y0 - d, z0 - d, x1 + d, y1 + d, z1 + d
+
+
+@njit(cache=True)
+def _held_box(held, row):
+    return held[row, 0], held[row, 1], held[row, 2], held[row, 3], held[row, 4], held[row, 5]
+
+
+@njit(cache=True)
+def _hold(held, row, box, side):
+    for i in range(6):
+        held[row, i] = box[i]
+    held[row, _HELD_SIDE] = side
+
+
+@njit(cache=True)
+def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, counts):
+    """overlapping_leaves under RULE_SWEPT, run to the end: the same leaf pairs in the same
+    order, the same node pairs tested, but each stacked node pair carries the world box
+    of the node its parent pair did not open, so that a node's box is computed once when
+    it is paired with the children of another, not once for each of those pairs.
+    Returns (stack, top = 0, out, k), rows out[:k]."""
+    held = np.empty((stack.shape[0], 7))
+    for row in range(top):
+        held[row, _HELD_SIDE] = _HELD_NONE
+    k = np.int64(0)
+    while top > 0:
+        top -= 1
+        na = stack[top, 0]
+        nb = stack[top, 1]
+        counts[COUNT_NODE_PAIRS] += 1
+        side = held[top, _HELD_SIDE]
+        box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(lo, hi, na, pose[0], pose[1],
+                                                                             motion[0], margin)
+        box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(lo, hi, nb, pose[2], pose[3],
+                                                                             motion[1], margin)
+        if (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
+                or box_a[2] > box_b[5] or box_b[2] > box_a[5]):
+            continue
+        leaf_a = count[na] > 0
+        leaf_b = count[nb] > 0
+        if leaf_a and leaf_b:
+            if k == out.shape[0]:
+                out = _grown(out, k)
+            out[k, 0] = na
+            out[k, 1] = nb
+            k += 1
+            continue
+        if top + 2 > stack.shape[0]:
+            stack = _grown(stack, top)
+            held = _grown(held, top)
+        if _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top):
+            _hold(held, top, box_b, _HELD_B)
+            _hold(held, top + 1, box_b, _HELD_B)
         else:
-            child = first[nb]
-            stack[top, 0] = na
-            stack[top, 1] = child + 1
-            stack[top + 1, 0] = na
-            stack[top + 1, 1] = child
+            _hold(held, top, box_a, _HELD_A)
+            _hold(held, top + 1, box_a, _HELD_A)
         top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k

@@ -28,12 +28,14 @@ import numpy as np
 from . import config
 from .broad import (
     RULE_POSE,
+    RULE_SWEPT,
     abs_rotation,
     half_area,
     oriented_boxes_overlap,
     overlapping_leaves,
     relative_pose,
     sweep_and_prune,
+    swept_leaves,
 )
 from .filters import pair_selected
 from .jit import njit
@@ -125,9 +127,13 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
     stack, leaves: int64 (cap, 2) buffers. Returns (stack, leaves, count)."""
     top = start_descent(ps, rp0, rp1, motion, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
-    stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                                               scratch.pose, scratch.motion, rule, margin, stack, top,
-                                               leaves, np.iinfo(np.int64).max, counts)
+    if rule == RULE_SWEPT:
+        stack, top, leaves, n = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
+                                             scratch.motion, margin, stack, top, leaves, counts)
+    else:
+        stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
+                                                   scratch.pose, scratch.motion, rule, margin, stack, top,
+                                                   leaves, np.iinfo(np.int64).max, counts)
     return stack, leaves, n
 
 

@@ -233,3 +233,65 @@ def test_normal_axes_separate_close_parallel_faces_that_boxes_do_not():
     assert t_lo > t_hi
     t_lo, t_hi = _swept_window(p0, p1, q0, q1, 0.11)  # within the margin: the whole step
     assert (t_lo, t_hi) == (0.0, 1.0)
+
+
+def _random_pose(rng, centre, spread, angle):
+    """A rigid pose [R | p] (3, 4): a turn by up to ``angle`` radians about a random axis,
+    placed at centre + up to spread in each coordinate."""
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    theta = rng.uniform(0.0, angle)
+    pose = np.empty((3, 4))
+    pose[:, :3] = np.eye(3) + np.sin(theta) * k + (1 - np.cos(theta)) * (k @ k)
+    pose[:, 3] = centre + rng.uniform(-spread, spread, 3)
+    return pose
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
+    """broad.swept_leaves, which carries the box of each node not yet opened down the
+    stack, finds the same leaf pairs in the same order after testing the same node pairs
+    as the plain tandem descent that recomputes both boxes for every pair
+    (broad.overlapping_leaves under RULE_SWEPT): FCL's robot turning and sliding
+    through its environment, screw and linear-vertex motion."""
+    from conftest import DATA
+
+    from collide.broad import RULE_SWEPT, overlapping_leaves, swept_leaves
+    from collide.discrete import object_margins, pair_scratch, start_descent
+    from collide.load import load_mesh
+    from collide.motion import INTERPOLATIONS, MOTION_WIDTH, step_motions
+    from collide.packed import pack_scene
+    from collide.rows import COUNT_NODE_PAIRS, COUNT_WIDTH
+
+    rng = np.random.default_rng(seed)
+    env, rob = load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj")
+    ps, _ = pack_scene([env, rob], np.array([0, 1]))
+    centre = env.vertices.mean(axis=0)
+    spread = 0.25 * np.ptp(env.vertices, axis=0)
+    poses = np.array([[_random_pose(rng, 0.0, 0.0, 0.2), _random_pose(rng, centre, spread, np.pi)]
+                      for _ in range(2)])
+    poses[1, 1] = _random_pose(rng, poses[0, 1, :, 3], 0.05 * spread, 1.0)
+    for interpolation in ("screw", "linear-vertex"):
+        margin = np.empty(2)
+        motion = np.empty((2, MOTION_WIDTH))
+        object_margins(ps, poses[0], poses[1], margin)
+        step_motions(INTERPOLATIONS[interpolation], poses[0], poses[1], margin, motion)
+        found = []
+        for descend in ("plain", "held"):
+            scratch, stack = pair_scratch(), np.empty((4, 2), np.int64)
+            top = start_descent(ps, poses[0], poses[1], motion, 0, 1, scratch, stack)
+            counts = np.zeros(COUNT_WIDTH, np.int64)
+            out = np.empty((4, 2), np.int64)
+            if descend == "plain":
+                _, _, out, k = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
+                                                  scratch.motion, RULE_SWEPT, 1e-9, stack, top, out,
+                                                  np.iinfo(np.int64).max, counts)
+            else:
+                _, _, out, k = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
+                                            scratch.motion, 1e-9, stack, top, out, counts)
+            found.append((out[:k].copy(), counts.copy()))
+        (plain, plain_counts), (held, held_counts) = found
+        assert plain.shape[0] > 10 and plain_counts[COUNT_NODE_PAIRS] > 100
+        np.testing.assert_array_equal(held, plain)
+        np.testing.assert_array_equal(held_counts, plain_counts)

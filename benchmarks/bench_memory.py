@@ -6,7 +6,8 @@ the number of frames.
 
 Scene: the 4 bodies of bench_frames.py (two static obstacles, two moving parts), for
 each number of frames. Each scan runs as its own process (``collide scan``, one worker)
-and its peak resident memory is the kernel's count for that process (``os.wait4``).
+and its peak resident memory is the kernel's count for that process (VmHWM, reset as the
+process starts: Linux only).
 
 Two ways of holding poses, in the same run:
 
@@ -20,7 +21,6 @@ Target (issue 12): peak memory independent of the number of frames beyond the ou
 """
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -31,8 +31,13 @@ from bench_frames import DT, MOVING, make_meshes, motion
 from benchlib import print_table
 from scalelib import env_note, write_scene
 
-#: runs collide's command line with config.POSE_BLOCK_BYTES set to argv[1]
-RUNNER = ("import sys; from collide import config; config.POSE_BLOCK_BYTES = int(sys.argv[1]); "
+#: runs collide's command line with config.POSE_BLOCK_BYTES set to argv[1], and prints the
+#: process's peak resident memory (VmHWM) on stderr as it exits. The peak is reset first:
+#: a child started from this (large) process would otherwise count this one's memory too
+RUNNER = ("import atexit, sys; open('/proc/self/clear_refs', 'w').write('5'); "
+          "atexit.register(lambda: print(next(l for l in open('/proc/self/status') if l.startswith('VmHWM')), "
+          "file=sys.stderr)); "
+          "from collide import config; config.POSE_BLOCK_BYTES = int(sys.argv[1]); "
           "from collide_cli.main import main; sys.argv = ['collide'] + sys.argv[2:]; main()")
 
 
@@ -45,7 +50,8 @@ def main(argv=None):
     parser.add_argument("--out", help="folder for the scenes (default: a temporary folder, removed)")
     args = parser.parse_args(argv)
     print(f"machine: {env_note()}")
-    rows = [("frames", "mode", "poses", "pose MiB", "wall s", "scan s", "peak MiB", "contacts")]
+    header = ("frames", "mode", "poses", "pose MiB", "wall s", "scan s", "peak MiB", "contacts")
+    rows = []
     with tempfile.TemporaryDirectory(prefix="bench-memory-") as tmp:
         root = Path(args.out or tmp)
         for n in (int(f) for f in args.frames.split(",")):
@@ -65,7 +71,7 @@ def main(argv=None):
                           file=sys.stderr, flush=True)
                 if len(found) != 1:
                     raise SystemExit(f"{n} frames, {mode}: the contacts differ between block sizes: {found}")
-    print_table(rows)
+    print_table(header, rows)
     print(f"machine after: {env_note()}")
     return 0
 
@@ -76,13 +82,12 @@ def measure(meshes, traj, mode, block_bytes, out):
     proc = subprocess.Popen([sys.executable, "-c", RUNNER, str(block_bytes), "scan", str(meshes), str(traj),
                              "-o", str(out), "--mode", mode, "--workers", "1", "--format", "json", "-q"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    stdout = proc.stdout.read()
-    stderr = proc.stderr.read()
-    _, status, usage = os.wait4(proc.pid, 0)
+    stdout, stderr = proc.communicate()
     wall = time.perf_counter() - start
-    if os.waitstatus_to_exitcode(status) not in (0, 1):
+    if proc.returncode not in (0, 1):
         raise SystemExit(f"scan failed: {stderr[-500:]}")
-    return wall, usage.ru_maxrss / 1024, json.loads(stdout)
+    peak_kib = int(stderr.strip().splitlines()[-1].split()[1])  # "VmHWM:  432220 kB"
+    return wall, peak_kib / 1024, json.loads(stdout)
 
 
 if __name__ == "__main__":

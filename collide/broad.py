@@ -220,11 +220,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0
         if leaf_a and leaf_b:
-            if k == out.shape[0]:
-                out = _grown(out, k)
-            out[k, 0] = na
-            out[k, 1] = nb
-            k += 1
+            out, k = _append_pair(out, k, na, nb)
             continue
         if top + 2 > stack.shape[0]:
             stack = _grown(stack, top)
@@ -232,6 +228,17 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
         top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
+
+
+@njit(cache=True)
+def _append_pair(out, k, na, nb):
+    """Write leaf pair (na, nb) as row k of out (int64 (cap, 2), grown when full).
+    Returns (out, k + 1)."""
+    if k == out.shape[0]:
+        out = _grown(out, k)
+    out[k, 0] = na
+    out[k, 1] = nb
+    return out, k + 1
 
 
 @njit(cache=True)
@@ -316,11 +323,7 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0
         if leaf_a and leaf_b:
-            if k == out.shape[0]:
-                out = _grown(out, k)
-            out[k, 0] = na
-            out[k, 1] = nb
-            k += 1
+            out, k = _append_pair(out, k, na, nb)
             continue
         if top + 2 > stack.shape[0]:
             stack = _grown(stack, top)

@@ -62,11 +62,16 @@ min-heap ordered by their start time (deeper boxes first on ties). Taking the fi
   dimension whose halving brings a half nearest to exclusion by one of the tests
   (looking at F on the splitting plane; ``_lookahead_dimension``).
 
-The search returns ``min(start, t_near)`` as soon as the first box's start reaches
-``t_near - time_tol``, and inf when no box is left. Why this is never late: every
-point of the domain where the exact F is within dist_tol lies in a box that is never
-dropped, and every box that starts earlier than the one taken was dropped or split
-(it is the heap's minimum), so no such point exists before the taken box's start.
+Once a near contact is certified at t_near, only an earlier contact could change the
+answer: every box taken is cut to end at t_cut = max(t_near - time_tol / 2, 0), so the search
+never spends work after it. The search returns ``min(start, t_cut)`` as soon as the
+first box's start reaches ``t_near - time_tol``; t_cut when no box is left after a
+certification (no contact before t_cut, a near contact at t_near <= t_cut + time_tol);
+and inf when no box is left and nothing was certified. Why this is never late: every
+point of the domain before t_cut where the exact F is within dist_tol lies in a box
+that is never dropped, and every box that starts earlier than the one taken was
+dropped or split (it is the heap's minimum), so no such point exists before the taken
+box's start.
 Excluding needs dist_tol + delta and certifying allows dist_tol + 2 delta, so a small
 enough box is always dropped or certified, and the search ends.
 
@@ -673,12 +678,14 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
     n = np.int64(1)
     checks = 0
     t_near = np.inf  # earliest certified near-contact time so far
+    t_cut = np.inf  # t_near - time_tol / 2: only a contact before it could change the answer
     while n > 0:
         n = _heap_pop(heap, n, box)
         if box[0] >= t_near - time_tol:
-            return min(box[0], t_near)
+            return min(box[0], t_cut)
         if box[0] > t_max:
             return np.inf  # every box left starts after t_max
+        box[1] = min(box[1], t_cut)
         checks += 1
         counts[COUNT_BOX_CHECKS] += 1
         if checks > MAX_CHECKS:
@@ -697,8 +704,9 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
         t_c = _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch)
         if t_c >= 0.0:
             t_near = min(t_near, t_c)
+            t_cut = max(t_near - 0.5 * time_tol, 0.0)
             if box[0] >= t_near - time_tol:
-                return box[0]
+                return min(box[0], t_cut)
         if box[1] - box[0] > time_tol and _splittable(box, 0) and _start_excluded(corners, tol_out):
             dim = 0
         else:
@@ -707,7 +715,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
             return box[0]  # cannot split or store more: the earliest live box's start
         n = _heap_push_half(heap, n, box, dim, np.bool_(False))
         n = _heap_push_half(heap, n, box, dim, np.bool_(True))
-    return np.inf
+    return t_cut  # no contact before it; inf when nothing was certified
 
 
 @njit(cache=True)

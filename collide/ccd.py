@@ -49,6 +49,25 @@ min-heap ordered by their start time (deeper boxes first on ties). Taking the fi
   box: no contact. (n . F does not change with u or v, n x e . F not with e's own
   parameter: these separate thin triangles and nearly parallel edges, which the axis
   tests alone only do after splitting the box very finely.)
+- coplanarity, dropped: contact needs the 4 points within dist_tol of coplanar. With
+  a, b the two edge vectors and c the offset vector (f1 - f0, f2 - f0, v - f0, or
+  ea1 - ea0, eb1 - eb0, eb0 - ea0), F = +-c + a combination of a and b, so for
+  n = a x b, |n . F| = |det(a, b, c)| =: |g(t)|, whatever u and v; and where F is within dist_tol on
+  every axis, |g(t)| <= dist_tol sum_i |n_i(t)|. Each vector is affine in t, so g is a
+  cubic, and over the box's time range [t0, t1] its Bernstein coefficients are the
+  averages of det(a, b, c) over the ways to take k of the 3 vectors at t1 and the rest
+  at t0 (k = 0..3; det is linear in each vector); g stays within their range. When
+  all 4 are beyond dist_tol * N + the rounding bound with the same sign (N bounds
+  sum_i |n_i| from the vectors' largest coordinates at t0 and t1, as |n_x| <=
+  |a_y| |b_z| + |a_z| |b_y|), no moment of the range has contact, for any (u, v).
+  This catches the long time ranges before and after a contact, which the fixed
+  directions below, taken at one moment, cannot. Rounding: each vector coordinate
+  on axis i is within 12.1 u m_i of exact (steps 1-4 below) and at most 2.01 m_i; a
+  3 x 3 determinant of such values, one factor per axis in each of its 6 products,
+  is then within about 1300 u m_x m_y m_z; the bound used is 4096 u m_x m_y m_z (the
+  sums of 3 determinants are compared with 3 times it) plus 2^-1000 for products
+  that underflow. The same test over the whole step [0, t_max] rules out a query
+  before any box is made.
 - certify: a regularised Gauss-Newton step on the corner values, refined by
   NEWTON_ITERATIONS steps on the exact F, proposes a point (t_c, u_c, v_c) of the box
   and of the domain -- with t_c the box's start, then anywhere in the box, then (for
@@ -136,6 +155,11 @@ MAX_CHECKS = 50_000
 HEAP_SIZE = 1024
 #: boxes this narrow (in t, u or v) are not split further along that dimension
 _MIN_WIDTH = 2.0 ** -60
+#: rounding bound of the coplanarity determinants, as a multiple of u * m_x * m_y * m_z
+#: (module docstring, "coplanarity")
+_COPLANARITY_ROUNDING = 4096.0
+#: its absolute part (products that underflow)
+_COPLANARITY_UNDERFLOW = 2.0 ** -1000
 #: coordinates must stay below this (no overflow in F; overflowing direction tests are skipped)
 MAX_COORDINATE = 1e150
 
@@ -194,8 +218,8 @@ def _f_axis(kind, x_t0, x_t1, t, u, v, axis):
 
 
 @njit(cache=True)
-def _rounding_bound(x_t0, x_t1):
-    """delta per axis (a 3-tuple, length units): bounds |computed F - exact F| (module doc)."""
+def _largest_coordinates(x_t0, x_t1):
+    """m per axis (a 3-tuple, length units): the largest |coordinate| over the 8 input points."""
     m0 = 0.0
     m1 = 0.0
     m2 = 0.0
@@ -203,8 +227,15 @@ def _rounding_bound(x_t0, x_t1):
         m0 = max(m0, abs(x_t0[r, 0]), abs(x_t1[r, 0]))
         m1 = max(m1, abs(x_t0[r, 1]), abs(x_t1[r, 1]))
         m2 = max(m2, abs(x_t0[r, 2]), abs(x_t1[r, 2]))
+    return (m0, m1, m2)
+
+
+@njit(cache=True)
+def _rounding_bound(m):
+    """delta per axis (a 3-tuple, length units): bounds |computed F - exact F| (module doc);
+    m: _largest_coordinates."""
     scale = ROUNDING_FACTOR * _UNIT_ROUNDOFF
-    return (scale * m0 + _UNDERFLOW, scale * m1 + _UNDERFLOW, scale * m2 + _UNDERFLOW)
+    return (scale * m[0] + _UNDERFLOW, scale * m[1] + _UNDERFLOW, scale * m[2] + _UNDERFLOW)
 
 
 @njit(cache=True)
@@ -224,6 +255,70 @@ def _root_excluded(kind, x_t0, x_t1, tol_out):
 
 
 # --- exclusion --------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _plane_vectors(kind, x_t0, x_t1, t, out, first):
+    """Rows first, first + 1, first + 2 of out (float64 (>= first + 3, 3)): the two edge
+    vectors and the offset vector of the query at time t, in the order of F (module
+    docstring): f1 - f0, f2 - f0, v - f0 (vertex-face) or ea1 - ea0, eb1 - eb0,
+    eb0 - ea0 (edge-edge). Their determinant is zero whenever the 4 points are coplanar."""
+    for axis in range(3):
+        p0 = _lerp(x_t0, x_t1, np.int64(0), axis, t)
+        p1 = _lerp(x_t0, x_t1, np.int64(1), axis, t)
+        p2 = _lerp(x_t0, x_t1, np.int64(2), axis, t)
+        p3 = _lerp(x_t0, x_t1, np.int64(3), axis, t)
+        if kind == VERTEX_FACE:  # v, f0, f1, f2
+            out[first, axis] = p2 - p1
+            out[first + 1, axis] = p3 - p1
+            out[first + 2, axis] = p0 - p1
+        else:  # ea0, ea1, eb0, eb1
+            out[first, axis] = p1 - p0
+            out[first + 1, axis] = p3 - p2
+            out[first + 2, axis] = p2 - p0
+
+
+@njit(cache=True)
+def _det_rows(m, i, j, k):
+    """Determinant of the 3 x 3 matrix with rows m[i], m[j], m[k]."""
+    return (m[i, 0] * (m[j, 1] * m[k, 2] - m[j, 2] * m[k, 1])
+            - m[i, 1] * (m[j, 0] * m[k, 2] - m[j, 2] * m[k, 0])
+            + m[i, 2] * (m[j, 0] * m[k, 1] - m[j, 1] * m[k, 0]))
+
+
+@njit(cache=True)
+def _edge_bound(vectors, row, m, axis):
+    """Bound on |exact coordinate axis| of vector row over the time range whose ends are
+    in rows row and row + 3 of vectors (_plane_vectors): the larger computed end plus
+    their rounding (12.1 u m, module docstring)."""
+    return max(abs(vectors[row, axis]), abs(vectors[row + 3, axis])) + 16.0 * _UNIT_ROUNDOFF * m[axis]
+
+
+@njit(cache=True)
+def _coplanarity_excluded(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
+    """The 4 points stay farther than dist_tol from coplanar over all of [t_lo, t_hi]
+    (module docstring, "coplanarity"): then no (u, v) gives contact in that time range.
+    m: _largest_coordinates; vectors: (6, 3) scratch."""
+    _plane_vectors(kind, x_t0, x_t1, t_lo, vectors, np.int64(0))
+    _plane_vectors(kind, x_t0, x_t1, t_hi, vectors, np.int64(3))
+    b0 = _det_rows(vectors, 0, 1, 2)
+    b3 = _det_rows(vectors, 3, 4, 5)
+    s1 = _det_rows(vectors, 3, 1, 2) + _det_rows(vectors, 0, 4, 2) + _det_rows(vectors, 0, 1, 5)
+    s2 = _det_rows(vectors, 0, 4, 5) + _det_rows(vectors, 3, 1, 5) + _det_rows(vectors, 3, 4, 2)
+    bound = _COPLANARITY_ROUNDING * _UNIT_ROUNDOFF * (m[0] * m[1] * m[2]) + _COPLANARITY_UNDERFLOW
+    if dist_tol > 0.0:
+        a0 = _edge_bound(vectors, 0, m, 0)
+        a1 = _edge_bound(vectors, 0, m, 1)
+        a2 = _edge_bound(vectors, 0, m, 2)
+        c0 = _edge_bound(vectors, 1, m, 0)
+        c1 = _edge_bound(vectors, 1, m, 1)
+        c2 = _edge_bound(vectors, 1, m, 2)
+        normal = (a1 * c2 + a2 * c1) + (a0 * c2 + a2 * c0) + (a0 * c1 + a1 * c0)
+        bound += normal * dist_tol * (1.0 + 2.0 ** -50)
+    if not bound < np.inf:
+        return False
+    if b0 > bound and b3 > bound and s1 > 3.0 * bound and s2 > 3.0 * bound:
+        return True
+    return b0 < -bound and b3 < -bound and s1 < -3.0 * bound and s2 < -3.0 * bound
 
 @njit(cache=True)
 def _box_corners(kind, x_t0, x_t1, box, corners):
@@ -662,7 +757,7 @@ def _heap_pop(heap, n, out):
 # --- the search -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, work, counts):
+def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_max, work, counts):
     """Best-first box search (module docstring); returns the conservative toi, or inf
     when there is no contact at all or none before t_max. work: CCDWork (its search
     buffers); counts: rows.COUNT_* (int64)."""
@@ -695,6 +790,8 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max,
         _box_corners(kind, x_t0, x_t1, box, corners)
         if _excluded(corners, tol_out):
             continue
+        if _coplanarity_excluded(kind, x_t0, x_t1, box[0], box[1], dist_tol, m, scratch):
+            continue
         _set_directions(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]), dist_tol, delta, dirs, bounds)
         if _directions_excluded(dirs, bounds, corners, np.int64(8)):
             continue
@@ -725,13 +822,16 @@ def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
     "no contact at or before t_max" (for callers that only need a minimum: a triangle
     pair's first contact over its 15 queries). work: CCDWork scratch (x_t0 and x_t1
     may be its x0 and x1); counts: int64 rows.COUNT_* counters."""
-    delta = _rounding_bound(x_t0, x_t1)
+    m = _largest_coordinates(x_t0, x_t1)
+    delta = _rounding_bound(m)
     tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
     if _root_excluded(kind, x_t0, x_t1, tol_out):
-        return np.inf  # the common case: no allocation at all
+        return np.inf  # the common case
+    if _coplanarity_excluded(kind, x_t0, x_t1, 0.0, min(1.0, t_max), dist_tol, m, work.scratch):
+        return np.inf  # never coplanar (within dist_tol) before t_max
     counts[COUNT_CCD_QUERIES] += 1
     tol_in = (tol_out[0] + delta[0], tol_out[1] + delta[1], tol_out[2] + delta[2])
-    return _search(kind, x_t0, x_t1, time_tol, dist_tol, delta, tol_out, tol_in, t_max, work, counts)
+    return _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_max, work, counts)
 
 
 @njit(cache=True)

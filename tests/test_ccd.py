@@ -628,3 +628,136 @@ def test_queries_that_once_ran_out_of_boxes():
         toi = TOI[kind](x_t0, x_t1)
         assert np.all(np.isfinite(toi))
         assert_followed_by_near_contact(kind, x_t0, x_t1, toi, 1e-6)
+
+
+# --- the coplanarity filter against exact arithmetic ------------------------------------------
+
+def _plane_vectors_exact(kind, x_t0, x_t1, t):
+    """The 3 vectors of ccd._plane_vectors at rational time t, exactly (Fractions)."""
+    p = [[Fraction(float(a)) + t * (Fraction(float(b)) - Fraction(float(a))) for a, b in zip(r0, r1)]
+         for r0, r1 in zip(x_t0, x_t1)]
+    if kind == "vertex-face":  # v, f0, f1, f2
+        return sub(p[2], p[1]), sub(p[3], p[1]), sub(p[0], p[1])
+    return sub(p[1], p[0]), sub(p[3], p[2]), sub(p[2], p[0])
+
+
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _coplanarity_cubic(kind, x_t0, x_t1):
+    """Exact coefficients (c0, c1, c2, c3) of g(t) = det of the plane vectors: the cubic
+    through its values at t = 0, 1/3, 2/3, 1 (Lagrange), low degree first."""
+    ts = [Fraction(k, 3) for k in range(4)]
+    gs = [_dot(_cross(a, b), c) for a, b, c in (_plane_vectors_exact(kind, x_t0, x_t1, t) for t in ts)]
+    coeffs = [Fraction(0)] * 4
+    for i, (ti, gi) in enumerate(zip(ts, gs)):
+        basis = [Fraction(1)]  # prod over j != i of (t - tj) / (ti - tj)
+        for j, tj in enumerate(ts):
+            if j != i:
+                basis = [(x if k < len(basis) else 0) * -tj + (basis[k - 1] if k > 0 else 0)
+                         for k, x in enumerate(basis + [0])]
+                basis = [x / (ti - tj) for x in basis]
+        coeffs = [c + gi * b for c, b in zip(coeffs, basis)]
+    return coeffs
+
+
+def _poly_eval(c, t):
+    return sum(ci * t ** k for k, ci in enumerate(c))
+
+
+def _poly_rem(a, b):
+    """Remainder of a / b (low degree first, b's leading coefficient nonzero)."""
+    a = list(a)
+    while len(a) >= len(b) and any(a):
+        factor = a[-1] / b[-1]
+        shift = len(a) - len(b)
+        for k, bk in enumerate(b):
+            a[k + shift] -= factor * bk
+        a.pop()
+    return a
+
+
+def _trim(c):
+    c = list(c)
+    while c and c[-1] == 0:
+        c.pop()
+    return c
+
+
+def _roots_in(c, lo, hi):
+    """Number of distinct real roots of the polynomial c in [lo, hi] (Sturm's theorem)."""
+    c = _trim(c)
+    if not c:
+        return np.inf  # g is zero everywhere
+    chain = [c, _trim([k * ck for k, ck in enumerate(c)][1:])]
+    while len(chain[-1]) > 1:
+        chain.append(_trim([-x for x in _poly_rem(chain[-2], chain[-1])]))
+        if not chain[-1]:
+            chain.pop()
+            break
+
+    def sign_changes(t):
+        signs = [s for s in (np.sign(_poly_eval(p, t)) for p in chain if p) if s != 0]
+        return sum(1 for a, b in zip(signs, signs[1:]) if a != b)
+    return sign_changes(lo) - sign_changes(hi) + (1 if _poly_eval(c, lo) == 0 else 0)
+
+
+def _coplanarity_cases(rng):
+    """Queries with coplanar moments (planted contacts, slivers, general motions), also
+    moved far from the origin, each with time ranges: all of [0, 1], random ones, and
+    narrow ones around a planted contact."""
+    cases = []
+    for kind in KINDS:
+        for x_t0, x_t1, ts in (planted_queries(rng, kind, 40), planted_queries(rng, kind, 20, thin=1e-4),
+                               (*general_queries(rng, 40), rng.uniform(0, 1, 40))):
+            for i in range(len(x_t0)):
+                offset = rng.choice([0.0, 1e3]) * rng.normal(size=3)
+                ranges = [(0.0, 1.0), tuple(np.sort(rng.uniform(0, 1, 2)))]
+                ranges += [(max(0.0, ts[i] - w), min(1.0, ts[i] + w)) for w in (1e-3, 1e-8)]
+                ranges += [(max(0.0, ts[i] - 2 * w), ts[i] - w) for w in (1e-4, 1e-9) if ts[i] > 2 * w]
+                cases.append((kind, x_t0[i] + offset, x_t1[i] + offset, ranges))
+        for _ in range(20):  # exactly coplanar at every moment: in the plane z = x + y, far out
+            x = dyadic(rng, (2, 4, 3)) + 512 * rng.integers(-4, 5, size=3)
+            x[..., 2] = x[..., 0] + x[..., 1]
+            cases.append((kind, x[0], x[1], [(0.0, 1.0), tuple(np.sort(rng.uniform(0, 1, 2)))]))
+    return cases
+
+
+@pytest.mark.parametrize("dist_tol", [0.0, 1e-3])
+def test_coplanarity_filter_never_drops_a_moment_of_contact(dist_tol):
+    """ccd._coplanarity_excluded drops a time range only when, exactly, the 4 points are
+    never coplanar in it (Sturm count of the exact cubic), and with dist_tol > 0 when the
+    points also stay beyond dist_tol of coplanar at every sampled moment of it
+    (|g(t)| > dist_tol * sum |n_i(t)|, n the exact normal): the condition under which no
+    two points of the primitives come within dist_tol on every axis. It must also drop
+    most ranges that are far from coplanar, or it would be a filter in name only."""
+    from collide import ccd
+    rng = np.random.default_rng(77 + int(dist_tol > 0))
+    scratch = np.empty((8, 3))
+    dropped = clear = missed_clear = 0
+    for kind, x_t0, x_t1, ranges in _coplanarity_cases(rng):
+        x_t0 = np.ascontiguousarray(x_t0)
+        x_t1 = np.ascontiguousarray(x_t1)
+        m = ccd._largest_coordinates(x_t0, x_t1)
+        code = np.int64(ccd.VERTEX_FACE if kind == "vertex-face" else ccd.EDGE_EDGE)
+        cubic = _coplanarity_cubic(kind, x_t0, x_t1)
+        for lo, hi in ranges:
+            excluded = ccd._coplanarity_excluded(code, x_t0, x_t1, lo, hi, dist_tol, m, scratch)
+            lo_f, hi_f = Fraction(float(lo)), Fraction(float(hi))
+            samples = [lo_f + (hi_f - lo_f) * Fraction(k, 16) for k in range(17)]
+            margins = []
+            for t in samples:
+                a, b, c = _plane_vectors_exact(kind, x_t0, x_t1, t)
+                normal = _cross(a, b)
+                margins.append(abs(_dot(normal, c)) - dist_tol * sum(abs(x) for x in normal))
+            if excluded:
+                dropped += 1
+                assert _roots_in(cubic, lo_f, hi_f) == 0, (kind, lo, hi)
+                assert min(margins) > 0, (kind, lo, hi)
+            # far from coplanar: |g| minus dist_tol |n|_1 stays above a tenth of the
+            # cubic's largest coefficient
+            if min(margins) > max(abs(x) for x in cubic) / 10 and _roots_in(cubic, lo_f, hi_f) == 0:
+                clear += 1
+                missed_clear += not excluded
+    assert dropped > 100 and clear > 50 and missed_clear <= clear // 20

@@ -69,7 +69,8 @@ min-heap ordered by their start time (deeper boxes first on ties). Taking the fi
   that underflow. The same test over the whole step [0, t_max] rules out a query
   before any box is made.
 - certify: a regularised Gauss-Newton step on the corner values, refined by
-  NEWTON_ITERATIONS steps on the exact F, proposes a point (t_c, u_c, v_c) of the box
+  up to NEWTON_ITERATIONS steps on the exact F (while they at least halve the
+  largest |F_axis| / tol_in and it is above 1), proposes a point (t_c, u_c, v_c) of the box
   and of the domain -- with t_c the box's start, then anywhere in the box, then (for
   a box at most time_tol long) its end. F is computed there afresh; if every axis is
   within dist_tol + 2 delta, the exact F is within dist_tol + 3 delta: a certified
@@ -148,7 +149,7 @@ ROUNDING_FACTOR = 128.0
 #: absolute part of the rounding bound (gradual underflow of tiny coordinates)
 _UNDERFLOW = 2.0 ** -1060
 #: Gauss-Newton steps when looking for a certified near contact in a box
-NEWTON_ITERATIONS = 2
+NEWTON_ITERATIONS = 8
 #: box checks per query before giving the conservative answer
 MAX_CHECKS = 50_000
 #: live boxes per query before giving the conservative answer
@@ -294,10 +295,10 @@ def _edge_bound(vectors, row, m, axis):
 
 
 @njit(cache=True)
-def _coplanarity_excluded(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
-    """The 4 points stay farther than dist_tol from coplanar over all of [t_lo, t_hi]
-    (module docstring, "coplanarity"): then no (u, v) gives contact in that time range.
-    m: _largest_coordinates; vectors: (6, 3) scratch."""
+def _coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
+    """Bernstein coefficients of g = det(a, b, c) over [t_lo, t_hi] (module docstring,
+    "coplanarity"): (b0, 3 b1, 3 b2, b3, bound), with bound the rounding bound plus
+    dist_tol * N (inf or nan when it overflows). vectors: (6, 3) scratch."""
     _plane_vectors(kind, x_t0, x_t1, t_lo, vectors, np.int64(0))
     _plane_vectors(kind, x_t0, x_t1, t_hi, vectors, np.int64(3))
     b0 = _det_rows(vectors, 0, 1, 2)
@@ -313,12 +314,69 @@ def _coplanarity_excluded(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
         c1 = _edge_bound(vectors, 1, m, 1)
         c2 = _edge_bound(vectors, 1, m, 2)
         normal = (a1 * c2 + a2 * c1) + (a0 * c2 + a2 * c0) + (a0 * c1 + a1 * c0)
-        bound += normal * dist_tol * (1.0 + 2.0 ** -50)
+        bound += normal * dist_tol * (1.0 + 2.0 ** -48)  # covers the roundings of normal and bound
+    return b0, s1, s2, b3, bound
+
+
+@njit(cache=True)
+def _cubic_beyond(cubic):
+    """All Bernstein coefficients of a _coplanarity_cubic beyond its bound, with one sign."""
+    b0, s1, s2, b3, bound = cubic
     if not bound < np.inf:
         return False
     if b0 > bound and b3 > bound and s1 > 3.0 * bound and s2 > 3.0 * bound:
         return True
     return b0 < -bound and b3 < -bound and s1 < -3.0 * bound and s2 < -3.0 * bound
+
+
+@njit(cache=True)
+def _coplanarity_excluded(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
+    """The 4 points stay farther than dist_tol from coplanar over all of [t_lo, t_hi]
+    (module docstring, "coplanarity"): then no (u, v) gives contact in that time range.
+    m: _largest_coordinates; vectors: (6, 3) scratch."""
+    return _cubic_beyond(_coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors))
+
+
+@njit(cache=True)
+def _bernstein_value(cubic, s):
+    """The cubic g at s in [0, 1] of its time range, as its sign relative to the first
+    coefficient's: > 0 on the same side as g(t_lo), beyond the bound."""
+    b0, s1, s2, b3, bound = cubic
+    r = 1.0 - s
+    value = b0 * r * r * r + s1 * s * r * r + s2 * s * s * r + b3 * s * s * s
+    return value * np.sign(b0) - bound
+
+
+@njit(cache=True)
+def _time_before_coplanar(cubic, t_lo, t_hi, time_tol):
+    """A time in (t_lo, t_hi) shortly (about time_tol / 4) before g first comes within its
+    bound of zero, judged from the floating-point cubic; -1.0 when g starts within the
+    bound, never gets there, or gets there too soon to be worth a split. A heuristic:
+    only where to split; the part before it is then tested by _coplanarity_excluded."""
+    b0, s1, s2, b3, bound = cubic
+    if not (abs(b0) > bound and bound < np.inf):
+        return -1.0
+    lo = 0.0
+    hi = -1.0
+    for k in range(1, 9):  # the first of 8 samples where g is within the bound
+        if not _bernstein_value(cubic, k / 8.0) > 0.0:
+            hi = k / 8.0
+            break
+        lo = k / 8.0
+    if hi < 0.0:
+        return -1.0
+    width = t_hi - t_lo
+    while (hi - lo) * width > 0.125 * time_tol:  # bisect: lo stays before it
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if _bernstein_value(cubic, mid) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    t = t_lo + lo * width - 0.25 * time_tol
+    return t if t_lo + 0.25 * time_tol < t < t_hi else -1.0
+
 
 @njit(cache=True)
 def _box_corners(kind, x_t0, x_t1, box, corners):
@@ -529,31 +587,48 @@ def _in_box(box, d, step):
 
 
 @njit(cache=True)
-def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, work):
-    """Refine the guess (t, u, v) toward F = 0 by NEWTON_ITERATIONS regularised
-    Gauss-Newton steps on the exact F (analytic derivatives), each kept in the box;
-    t stays fixed when fix_t. work: (8, 3) scratch. Only a guess: the caller checks
+def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, tol_in, work):
+    """Refine the guess (t, u, v) toward F = 0 by regularised Gauss-Newton steps on the
+    exact F (analytic derivatives), each kept in the box; t stays fixed when fix_t.
+    Stops once every |F_axis| is within tol_in, when a step fails to halve the
+    largest |F_axis| / tol_in (no quick convergence in this box), or after
+    NEWTON_ITERATIONS steps. work: (8, 3) scratch. Only a guess: the caller checks
     the point it leads to."""
     jac = work[0:3]  # jac[axis, d]: change of F_axis across the box along dimension d
     gram = work[3:6]
     f = work[6]
     rhs = work[7]
     sign_u = -1.0 if kind == VERTEX_FACE else 1.0  # F = ... -+ u e0 - v e1 (module docstring)
+    fix_u = False  # u (v) reached a side of the box: keep it there, solve for the rest
+    fix_v = False
+    residual = np.inf
     for _ in range(NEWTON_ITERATIONS):
+        last = residual
+        residual = 0.0
         for axis in range(3):
             f[axis] = _f_axis(kind, x_t0, x_t1, t, u, v, axis)
+            residual = max(residual, abs(f[axis]) / tol_in[axis])
+        if residual <= 1.0 or not residual < 0.5 * last:
+            break
+        for axis in range(3):
             # F is affine in t for fixed (u, v): its t-derivative is F(1) - F(0)
             jac[axis, 0] = 0.0 if fix_t else (_f_axis(kind, x_t0, x_t1, 1.0, u, v, axis)
                                               - _f_axis(kind, x_t0, x_t1, 0.0, u, v, axis))
-            jac[axis, 1] = sign_u * _edge_vector(kind, x_t0, x_t1, t, np.int64(0), axis)
-            jac[axis, 2] = -_edge_vector(kind, x_t0, x_t1, t, np.int64(1), axis)
+            jac[axis, 1] = 0.0 if fix_u else sign_u * _edge_vector(kind, x_t0, x_t1, t, np.int64(0), axis)
+            jac[axis, 2] = 0.0 if fix_v else -_edge_vector(kind, x_t0, x_t1, t, np.int64(1), axis)
             for d in range(3):
                 jac[axis, d] *= box[2 * d + 1] - box[2 * d]
         step = _regularised_solve(jac, f, gram, rhs, 1e-12)  # small: the steps must reach ~1e-14
         if not fix_t:
             t = _clamp(t + step[0] * (box[1] - box[0]), box[0], box[1])
-        u = _clamp(u + step[1] * (box[3] - box[2]), box[2], box[3])
-        v = _clamp(v + step[2] * (box[5] - box[4]), box[4], box[5])
+        u_free = u + step[1] * (box[3] - box[2])
+        v_free = v + step[2] * (box[5] - box[4])
+        u = _clamp(u_free, box[2], box[3])
+        v = _clamp(v_free, box[4], box[5])
+        if u != u_free or v != v_free:  # a new side reached: the next step may not halve F
+            fix_u = fix_u or u != u_free
+            fix_v = fix_v or v != v_free
+            residual = np.inf
     return t, u, v
 
 
@@ -571,7 +646,7 @@ def _near_contact_at(kind, x_t0, x_t1, box, corners, face, tol_in, scratch):
     t = _in_box(box, 0, x[0]) if face < 0 else box[face]
     u = _in_box(box, 1, x[1])
     v = _in_box(box, 2, x[2])
-    t, u, v = _gauss_newton(kind, x_t0, x_t1, box, t, u, v, face >= 0, scratch)
+    t, u, v = _gauss_newton(kind, x_t0, x_t1, box, t, u, v, face >= 0, tol_in, scratch)
     if kind == VERTEX_FACE and u + v > 1.0:  # pull it back into the triangle
         excess = 0.5 * (u + v - 1.0)
         u = max(u - excess, box[2])
@@ -718,9 +793,16 @@ def _swap(heap, i, j):
 @njit(cache=True)
 def _heap_push_half(heap, n, box, dim, upper):
     """Push the lower (upper=False) or upper half of box along dim; returns the new size."""
+    return _heap_push_part(heap, n, box, dim, 0.5 * (box[2 * dim] + box[2 * dim + 1]), upper)
+
+
+@njit(cache=True)
+def _heap_push_part(heap, n, box, dim, at, upper):
+    """Push the part of box below (upper=False) or above the value at along dim; returns
+    the new size."""
     for c in range(_ROW):
         heap[n, c] = box[c]
-    heap[n, 2 * dim + (0 if upper else 1)] = 0.5 * (box[2 * dim] + box[2 * dim + 1])
+    heap[n, 2 * dim + (0 if upper else 1)] = at
     heap[n, 6] = box[6] + 1.0
     i = n
     while i > 0:
@@ -773,7 +855,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_m
     n = np.int64(1)
     checks = 0
     t_near = np.inf  # earliest certified near-contact time so far
-    t_cut = np.inf  # t_near - time_tol / 2: only a contact before it could change the answer
+    t_cut = np.inf  # max(t_near - time_tol / 2, 0): only a contact before it could change the answer
     while n > 0:
         n = _heap_pop(heap, n, box)
         if box[0] >= t_near - time_tol:
@@ -790,7 +872,8 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_m
         _box_corners(kind, x_t0, x_t1, box, corners)
         if _excluded(corners, tol_out):
             continue
-        if _coplanarity_excluded(kind, x_t0, x_t1, box[0], box[1], dist_tol, m, scratch):
+        cubic = _coplanarity_cubic(kind, x_t0, x_t1, box[0], box[1], dist_tol, m, scratch)
+        if _cubic_beyond(cubic):
             continue
         _set_directions(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]), dist_tol, delta, dirs, bounds)
         if _directions_excluded(dirs, bounds, corners, np.int64(8)):
@@ -804,12 +887,19 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_m
             t_cut = max(t_near - 0.5 * time_tol, 0.0)
             if box[0] >= t_near - time_tol:
                 return min(box[0], t_cut)
+        if n + 2 > HEAP_SIZE:
+            return box[0]  # cannot store more: the earliest live box's start
+        t_split = _time_before_coplanar(cubic, box[0], box[1], time_tol) if box[1] - box[0] > time_tol else -1.0
+        if t_split > 0.0:  # cut off the time before the 4 points can first be coplanar
+            n = _heap_push_part(heap, n, box, np.int64(0), t_split, np.bool_(False))
+            n = _heap_push_part(heap, n, box, np.int64(0), t_split, np.bool_(True))
+            continue
         if box[1] - box[0] > time_tol and _splittable(box, 0) and _start_excluded(corners, tol_out):
             dim = 0
         else:
             dim = _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, scratch, proj)
-        if dim < 0 or n + 2 > HEAP_SIZE:
-            return box[0]  # cannot split or store more: the earliest live box's start
+        if dim < 0:
+            return box[0]  # cannot split: the earliest live box's start
         n = _heap_push_half(heap, n, box, dim, np.bool_(False))
         n = _heap_push_half(heap, n, box, dim, np.bool_(True))
     return t_cut  # no contact before it; inf when nothing was certified

@@ -68,6 +68,18 @@ min-heap ordered by their start time (deeper boxes first on ties). Taking the fi
   sums of 3 determinants are compared with 3 times it) plus 2^-1000 for products
   that underflow. The same test over the whole step [0, t_max] rules out a query
   before any box is made.
+- shrinking: F is affine along each dimension of the box, so along dimension d each
+  of the 4 edges of the box parallel to d carries F linearly between its two corner
+  values, and the slice of the box at fraction s of its width along d has every
+  F_axis within the range of the 4 edges' values at s. Where, on some axis, all 4
+  are beyond tol_out (= dist_tol + delta) on one side, that whole slice is beyond
+  dist_tol: no contact in it. When such slices cover an end of the box (s from 0,
+  or up to 1), that end is cut off; if some dimension shrinks to half its width or
+  less, the smaller box goes back on the heap to be checked afresh, since its
+  corners are new. The cut stays 2^-40 (relative) short of the computed crossing
+  of each edge, then one ulp, so rounding in the crossings and in the new bounds
+  never cuts off a slice the test did not rule out. This ends the long runs of
+  halvings toward an edge or a moment that a primitive passes within rounding of.
 - certify: a regularised Gauss-Newton step on the corner values, refined by
   up to NEWTON_ITERATIONS steps on the exact F (while they at least halve the
   largest |F_axis| / tol_in and it is above 1), proposes a point (t_c, u_c, v_c) of the box
@@ -161,6 +173,9 @@ _MIN_WIDTH = 2.0 ** -60
 _COPLANARITY_ROUNDING = 4096.0
 #: its absolute part (products that underflow)
 _COPLANARITY_UNDERFLOW = 2.0 ** -1000
+#: relative margin by which the ends cut off a box stay short of the computed crossings
+#: (module docstring, "shrinking")
+_SHRINK_MARGIN = 2.0 ** -40
 #: coordinates must stay below this (no overflow in F; overflowing direction tests are skipped)
 MAX_COORDINATE = 1e150
 
@@ -675,6 +690,69 @@ def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
     return t_c
 
 
+# --- shrinking --------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _excluded_ends(corners, dim, tol_out):
+    """(s_lo, s_hi), fractions of the box's width along dim: over the slices of the box at
+    fractions s < s_lo and s > s_hi, the exact F is beyond dist_tol on some axis (module
+    docstring, "shrinking"); s_lo >= s_hi when that covers the whole box."""
+    bit = 1 << dim
+    s_lo = 0.0
+    s_hi = 1.0
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            a = 0.0  # the slices beyond on this axis and side: s in (a, b) on all 4 lines
+            b = 1.0
+            for c in range(8):
+                if c & bit:
+                    continue
+                f0 = sign * corners[c, axis] - tol_out[axis]
+                f1 = sign * corners[c | bit, axis] - tol_out[axis]
+                if f0 > 0.0 and f1 > 0.0:
+                    continue
+                if not (f0 > 0.0 or f1 > 0.0):  # never beyond on this line (or nan)
+                    a = 1.0
+                    b = 0.0
+                    break
+                crossing = f0 / (f0 - f1)  # where this line leaves (f0 > 0) or enters the beyond side
+                if f0 > 0.0:
+                    b = min(b, crossing * (1.0 - _SHRINK_MARGIN))
+                else:
+                    a = max(a, crossing * (1.0 + _SHRINK_MARGIN))
+            if a < b:
+                if a <= 0.0:
+                    s_lo = max(s_lo, b)
+                if b >= 1.0:
+                    s_hi = min(s_hi, a)
+    return s_lo, s_hi
+
+
+@njit(cache=True)
+def _shrink(corners, box, tol_out):
+    """Cut off the ends of the box (a heap row, changed in place) that the axis tests rule
+    out slice by slice: -1 when that is all of it, 1 when some dimension shrank to at
+    most half its width (the box is then changed and must be checked afresh), else 0
+    (box unchanged)."""
+    shrunk = 0
+    for dim in range(3):
+        s_lo, s_hi = _excluded_ends(corners, dim, tol_out)
+        if not s_lo < s_hi:
+            return -1
+        if s_hi - s_lo > 0.5:
+            continue
+        lo = box[2 * dim]
+        hi = box[2 * dim + 1]
+        width = hi - lo
+        new_lo = max(lo, np.nextafter(lo + s_lo * width * (1.0 - _SHRINK_MARGIN), -np.inf))
+        new_hi = min(hi, np.nextafter(hi - (1.0 - s_hi) * width * (1.0 - _SHRINK_MARGIN), np.inf))
+        if new_lo < new_hi:
+            box[2 * dim] = new_lo
+            box[2 * dim + 1] = new_hi
+            shrunk = 1
+    return shrunk
+
+
 # --- splitting --------------------------------------------------------------------------------
 
 @njit(cache=True)
@@ -874,6 +952,12 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_m
             continue
         cubic = _coplanarity_cubic(kind, x_t0, x_t1, box[0], box[1], dist_tol, m, scratch)
         if _cubic_beyond(cubic):
+            continue
+        shrunk = _shrink(corners, box, tol_out)
+        if shrunk < 0:
+            continue
+        if shrunk > 0:  # check the smaller box afresh
+            n = _heap_push_part(heap, n, box, np.int64(0), box[1], np.bool_(False))
             continue
         _set_directions(kind, x_t0, x_t1, 0.5 * (box[0] + box[1]), dist_tol, delta, dirs, bounds)
         if _directions_excluded(dirs, bounds, corners, np.int64(8)):

@@ -269,6 +269,13 @@ def exact_first_contact(kind, x_t0, x_t1):
     """t* for a query whose two primitives each translate rigidly (exactly): F is then
     affine in (t, u, v) jointly, so the contact is the unique solution of a 3 x 3 linear
     system (None when it is singular: parallel or coplanar motion)."""
+    point = exact_contact_point(kind, x_t0, x_t1)
+    return point if point is None or point == np.inf else point[0]
+
+
+def exact_contact_point(kind, x_t0, x_t1):
+    """(t, u, v) of exact_first_contact's contact, np.inf when there is none, None when
+    the system is singular."""
     p = [frac(r) for r in x_t0]
     w = [sub(frac(b), frac(a)) for a, b in zip(x_t0, x_t1)]
     if kind == "vertex-face":
@@ -281,7 +288,7 @@ def exact_first_contact(kind, x_t0, x_t1):
         inside = sol is not None and 0 <= sol[1] <= 1 and 0 <= sol[2] <= 1
     if sol is None:
         return None
-    return sol[0] if inside and 0 <= sol[0] <= 1 else np.inf
+    return sol if inside and 0 <= sol[0] <= 1 else np.inf
 
 
 def rigid_queries(rng, kind, n):
@@ -761,3 +768,100 @@ def test_coplanarity_filter_never_drops_a_moment_of_contact(dist_tol):
                 clear += 1
                 missed_clear += not excluded
     assert dropped > 100 and clear > 50 and missed_clear <= clear // 20
+
+
+def _exact_f(kind, x_t0, x_t1, t, u, v):
+    """F (module docstring of collide.ccd) at rational (t, u, v), exactly (Fractions)."""
+    p = [[Fraction(float(a)) + t * (Fraction(float(b)) - Fraction(float(a))) for a, b in zip(r0, r1)]
+         for r0, r1 in zip(x_t0, x_t1)]
+    if kind == "vertex-face":
+        return [(p[0][i] - p[1][i]) - u * (p[2][i] - p[1][i]) - v * (p[3][i] - p[1][i]) for i in range(3)]
+    return [(p[0][i] - p[2][i]) + u * (p[1][i] - p[0][i]) - v * (p[3][i] - p[2][i]) for i in range(3)]
+
+
+@pytest.mark.parametrize("dist_tol", [0.0, 1e-3])
+def test_shrinking_cuts_off_only_parts_beyond_the_tolerance(dist_tol):
+    """ccd._shrink cuts ends off a box only where, exactly, F is beyond dist_tol on some
+    axis: checked with exact arithmetic at points of every cut-off end, including its
+    inner boundary. Boxes are random, also tiny ones around planted contacts (where the
+    cuts are narrowest) and ones around an edge that a vertex passes just beside."""
+    from collide import ccd
+    rng = np.random.default_rng(91 + int(dist_tol > 0))
+    work = ccd.ccd_work()
+    box = np.empty(7)
+    checked = cut = 0
+    for kind in KINDS:
+        code = np.int64(ccd.VERTEX_FACE if kind == "vertex-face" else ccd.EDGE_EDGE)
+        x_t0s, x_t1s, ts = planted_queries(rng, kind, 60)
+        x_t0s[30:] += rng.normal(size=(30, 1, 3)) * 1e-9  # near misses, just beside the contact
+        for x_t0, x_t1, ts_i in zip(x_t0s, x_t1s, ts):
+            x_t0 = np.ascontiguousarray(x_t0)
+            x_t1 = np.ascontiguousarray(x_t1)
+            delta = ccd._rounding_bound(ccd._largest_coordinates(x_t0, x_t1))
+            tol_out = tuple(dist_tol + d for d in delta)
+            for size in (1.0, 1e-2, 1e-5, 1e-9):
+                centre = np.array([ts_i, *rng.uniform(0, 1, 2)])
+                lo = np.clip(centre - size * rng.uniform(0.1, 1, 3), 0, 1)
+                hi = np.clip(centre + size * rng.uniform(0.1, 1, 3), 0, 1)
+                box[:] = (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2], 0.0)
+                before = box.copy()
+                ccd._box_corners(code, x_t0, x_t1, box, work.corners)
+                outcome = ccd._shrink(work.corners, box, tol_out)
+                checked += 1
+                if outcome == 0:
+                    assert np.array_equal(box, before)
+                    continue
+                cut += 1
+                slabs = []  # (dimension, outer bound, bound next to what is kept)
+                for d in range(3):
+                    if outcome < 0:  # all of it is ruled out
+                        slabs.append((d, before[2 * d], before[2 * d + 1]))
+                        continue
+                    if box[2 * d] > before[2 * d]:
+                        slabs.append((d, before[2 * d], np.nextafter(box[2 * d], -np.inf)))
+                    if box[2 * d + 1] < before[2 * d + 1]:
+                        slabs.append((d, before[2 * d + 1], np.nextafter(box[2 * d + 1], np.inf)))
+                for d, outer, inner in slabs:
+                    for s in (Fraction(0), Fraction(1, 2), Fraction(1)):  # inner: just beside the kept box
+                        point = [Fraction(float(rng.uniform(before[2 * k], before[2 * k + 1]))) for k in range(3)]
+                        point[d] = Fraction(float(outer)) + s * (Fraction(float(inner)) - Fraction(float(outer)))
+                        f = _exact_f(kind, x_t0, x_t1, *point)
+                        assert max(abs(x) for x in f) > dist_tol, (kind, before, box, d, point)
+    assert checked > 400 and cut > 40
+
+
+def test_shrinking_keeps_every_exact_contact():
+    """A box that holds an exact contact point (rigid dyadic motions, contact solved in
+    rational arithmetic) is never ruled out by ccd._shrink, and the point stays in the
+    box it leaves, even when the point lies a millionth of the box's width from a side."""
+    from collide import ccd
+    rng = np.random.default_rng(5)
+    work = ccd.ccd_work()
+    box = np.empty(7)
+    kept = 0
+    for kind in KINDS:
+        code = np.int64(ccd.VERTEX_FACE if kind == "vertex-face" else ccd.EDGE_EDGE)
+        x_t0s, x_t1s = rigid_queries(rng, kind, 200)
+        for x_t0, x_t1 in zip(x_t0s[:100], x_t1s[:100]):  # the planted half
+            point = exact_contact_point(kind, x_t0, x_t1)
+            if point is None or point == np.inf:
+                continue
+            delta = ccd._rounding_bound(ccd._largest_coordinates(x_t0, x_t1))
+            for size in (0.5, 1e-3, 1e-7):
+                side = rng.integers(0, 3)
+                lo, hi = np.empty(3), np.empty(3)
+                for d in range(3):
+                    near = 1e-6 if d == side else rng.uniform(0.1, 0.9)  # the point's place in the box
+                    lo[d] = float(point[d]) - near * size
+                    hi[d] = lo[d] + size
+                if rng.random() < 0.5:  # near the upper side instead
+                    lo[side], hi[side] = float(point[side]) - (1 - 1e-6) * size, float(point[side]) + 1e-6 * size
+                box[:] = (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2], 0.0)
+                inside = [Fraction(box[2 * d]) <= point[d] <= Fraction(box[2 * d + 1]) for d in range(3)]
+                if not all(inside):
+                    continue  # rounding put the point just outside: nothing to check
+                ccd._box_corners(code, np.ascontiguousarray(x_t0), np.ascontiguousarray(x_t1), box, work.corners)
+                assert ccd._shrink(work.corners, box, delta) >= 0, (kind, point, size)
+                assert all(Fraction(box[2 * d]) <= point[d] <= Fraction(box[2 * d + 1]) for d in range(3))
+                kept += 1
+    assert kept > 300

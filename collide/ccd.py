@@ -653,12 +653,13 @@ def _clamp(x, lo, hi):
 
 
 @njit(cache=True)
-def _near_contact_at(kind, x_t0, x_t1, box, corners, face, tol_in, scratch):
+def _near_contact_at(kind, x_t0, x_t1, box, corners, face, t_fixed, tol_in, scratch):
     """Time t_c of the candidate point from _newton_step(face) and _gauss_newton if F
     there, computed afresh, is within tol_in on every axis and the point is in the
-    domain; else -1.0."""
+    domain; else -1.0. With face >= 0, t stays at t_fixed (a time of the box; the
+    face's time, or near it)."""
     x = _newton_step(corners, face, scratch)
-    t = _in_box(box, 0, x[0]) if face < 0 else box[face]
+    t = _in_box(box, 0, x[0]) if face < 0 else t_fixed
     u = _in_box(box, 1, x[1])
     v = _in_box(box, 2, x[2])
     t, u, v = _gauss_newton(kind, x_t0, x_t1, box, t, u, v, face >= 0, tol_in, scratch)
@@ -679,14 +680,22 @@ def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
     """Earliest time of the box found to hold a certified near contact, -1.0 if none.
 
     Tries, in order: the box's start time (which ends the search at once), a point
-    anywhere in the box, and for a box at most time_tol long its end time.
+    anywhere in the box, and for a box at most time_tol long its end time. When the
+    point anywhere lies over time_tol after the start, half of time_tol after the start
+    is tried too: a contact that lasts (edges sliding along each other) then ends the
+    search at once instead of halving the box toward its start.
     """
-    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(0), tol_in, scratch)
+    start = np.int64(0)
+    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, start, box[0], tol_in, scratch)
     if t_c >= 0.0:
         return t_c
-    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(-1), tol_in, scratch)
+    t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(-1), -1.0, tol_in, scratch)
+    if t_c - box[0] > time_tol:
+        early = _near_contact_at(kind, x_t0, x_t1, box, corners, start, box[0] + 0.5 * time_tol, tol_in, scratch)
+        if early >= 0.0:
+            return early
     if t_c < 0.0 and box[1] - box[0] <= time_tol:
-        t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(1), tol_in, scratch)
+        t_c = _near_contact_at(kind, x_t0, x_t1, box, corners, np.int64(1), box[1], tol_in, scratch)
     return t_c
 
 

@@ -740,8 +740,8 @@ def _excluded_ends(corners, dim, tol_out):
 @njit(cache=True)
 def _shrink(corners, box, tol_out):
     """Cut off the ends of the box (a heap row, changed in place) that the axis tests rule
-    out slice by slice: -1 when that is all of it, 1 when some dimension shrank to at
-    most half its width (the box is then changed and must be checked afresh), else 0
+    out slice by slice: -1 when that is all of it, 1 when some dimension shrank to about
+    half its width or less (the box is then changed and must be checked afresh), else 0
     (box unchanged)."""
     shrunk = 0
     for dim in range(3):
@@ -755,7 +755,7 @@ def _shrink(corners, box, tol_out):
         width = hi - lo
         new_lo = max(lo, np.nextafter(lo + s_lo * width * (1.0 - _SHRINK_MARGIN), -np.inf))
         new_hi = min(hi, np.nextafter(hi - (1.0 - s_hi) * width * (1.0 - _SHRINK_MARGIN), np.inf))
-        if new_lo < new_hi:
+        if new_lo < new_hi and new_hi - new_lo <= 0.75 * width:  # progress, also for widths of a few ulps
             box[2 * dim] = new_lo
             box[2 * dim + 1] = new_hi
             shrunk = 1

@@ -639,10 +639,15 @@ def test_queries_that_once_ran_out_of_boxes():
 
 # --- the coplanarity filter against exact arithmetic ------------------------------------------
 
+def _exact_points(x_t0, x_t1, t):
+    """The query's 4 points at rational time t, exactly (lists of Fractions)."""
+    return [[Fraction(float(a)) + t * (Fraction(float(b)) - Fraction(float(a))) for a, b in zip(r0, r1)]
+            for r0, r1 in zip(x_t0, x_t1)]
+
+
 def _plane_vectors_exact(kind, x_t0, x_t1, t):
     """The 3 vectors of ccd._plane_vectors at rational time t, exactly (Fractions)."""
-    p = [[Fraction(float(a)) + t * (Fraction(float(b)) - Fraction(float(a))) for a, b in zip(r0, r1)]
-         for r0, r1 in zip(x_t0, x_t1)]
+    p = _exact_points(x_t0, x_t1, t)
     if kind == "vertex-face":  # v, f0, f1, f2
         return sub(p[2], p[1]), sub(p[3], p[1]), sub(p[0], p[1])
     return sub(p[1], p[0]), sub(p[3], p[2]), sub(p[2], p[0])
@@ -772,8 +777,7 @@ def test_coplanarity_filter_never_drops_a_moment_of_contact(dist_tol):
 
 def _exact_f(kind, x_t0, x_t1, t, u, v):
     """F (module docstring of collide.ccd) at rational (t, u, v), exactly (Fractions)."""
-    p = [[Fraction(float(a)) + t * (Fraction(float(b)) - Fraction(float(a))) for a, b in zip(r0, r1)]
-         for r0, r1 in zip(x_t0, x_t1)]
+    p = _exact_points(x_t0, x_t1, t)
     if kind == "vertex-face":
         return [(p[0][i] - p[1][i]) - u * (p[2][i] - p[1][i]) - v * (p[3][i] - p[1][i]) for i in range(3)]
     return [(p[0][i] - p[2][i]) + u * (p[1][i] - p[0][i]) - v * (p[3][i] - p[2][i]) for i in range(3)]

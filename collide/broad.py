@@ -62,14 +62,13 @@ def sweep_and_prune(lo, hi):
     is O(N log N + K) for boxes that are not all stacked along that axis.
     """
     n = lo.shape[0]
-    spread = np.zeros(3)
-    for a in range(3):
-        if n > 0:
-            spread[a] = lo[:, a].max() - lo[:, a].min()
-    axis = int(np.argmax(spread))
-    order = np.argsort(lo[:, axis], kind="mergesort")
+    axis = _widest_axis(lo)
+    starts = np.empty(n)
+    for i in range(n):
+        starts[i] = lo[i, axis]
+    order = np.argsort(starts, kind="mergesort")
     pairs = np.empty((max(n, 4), 2), np.int64)
-    k = np.int64(0)
+    k = 0
     for s in range(n):
         i = order[s]
         for r in range(s + 1, n):
@@ -78,15 +77,36 @@ def sweep_and_prune(lo, hi):
                 break
             if boxes_overlap(lo[i], hi[i], lo[j], hi[j]):
                 if k == pairs.shape[0]:
-                    grown = np.empty((2 * k, 2), np.int64)
-                    grown[:k] = pairs
-                    pairs = grown
+                    pairs = grown_rows(pairs, k)
                 pairs[k, 0] = min(i, j)
                 pairs[k, 1] = max(i, j)
                 k += 1
-    pairs = pairs[:k]
-    sort = np.argsort(pairs[:, 0] * n + pairs[:, 1])
-    return pairs[sort].copy()
+    keys = np.empty(k, np.int64)  # sort by (a, b)
+    for r in range(k):
+        keys[r] = pairs[r, 0] * n + pairs[r, 1]
+    sort = np.argsort(keys, kind="mergesort")
+    out = np.empty((k, 2), np.int64)
+    for r in range(k):
+        out[r, 0] = pairs[sort[r], 0]
+        out[r, 1] = pairs[sort[r], 1]
+    return out
+
+
+@njit(cache=True)
+def _widest_axis(lo):
+    """The axis (0, 1 or 2) along which the rows of lo (N, 3) spread most (0 if N == 0)."""
+    axis = 0
+    widest = -1.0
+    for a in range(3):
+        low = np.inf
+        high = -np.inf
+        for i in range(lo.shape[0]):
+            low = min(low, lo[i, a])
+            high = max(high, lo[i, a])
+        if high - low > widest:
+            axis = a
+            widest = high - low
+    return axis
 
 
 # --- level 2: tandem descent --------------------------------------------------------
@@ -223,7 +243,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
             out, k = _append_pair(out, k, na, nb)
             continue
         if top + 2 > stack.shape[0]:
-            stack = _grown(stack, top)
+            stack = grown_rows(stack, top)
         _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top)
         top += 2
     counts[COUNT_LEAF_PAIRS] += k
@@ -235,7 +255,7 @@ def _append_pair(out, k, na, nb):
     """Write leaf pair (na, nb) as row k of out (int64 (cap, 2), grown when full).
     Returns (out, k + 1)."""
     if k == out.shape[0]:
-        out = _grown(out, k)
+        out = grown_rows(out, k)
     out[k, 0] = na
     out[k, 1] = nb
     return out, k + 1
@@ -326,8 +346,8 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
             out, k = _append_pair(out, k, na, nb)
             continue
         if top + 2 > stack.shape[0]:
-            stack = _grown(stack, top)
-            held = _grown(held, top)
+            stack = grown_rows(stack, top)
+            held = grown_rows(held, top)
         if _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top):
             _hold(held, top, box_b, _HELD_B)
             _hold(held, top + 1, box_b, _HELD_B)
@@ -340,8 +360,12 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
 
 
 @njit(cache=True)
-def _grown(rows, n):
-    """A buffer twice the size of rows (cap, 2) holding its first n rows."""
+def grown_rows(rows, n):
+    """A buffer twice the size of rows (cap, w), at least 16 rows, holding its first n
+    rows (copied element by element: no slice assignment, whose error path costs
+    compile time)."""
     grown = np.empty((max(2 * rows.shape[0], 16), rows.shape[1]), rows.dtype)
-    grown[:n] = rows[:n]
+    for i in range(n):
+        for j in range(rows.shape[1]):
+            grown[i, j] = rows[i, j]
     return grown

@@ -938,7 +938,10 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_m
     bounds = work.bounds
     proj = work.proj
     box = work.box
-    heap[0, :] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0)
+    for c in range(3):  # the root box: t, u and v in [0, 1], at depth 0
+        heap[0, 2 * c] = 0.0
+        heap[0, 2 * c + 1] = 1.0
+    heap[0, 6] = 0.0
     n = np.int64(1)
     checks = 0
     t_near = np.inf  # earliest certified near-contact time so far

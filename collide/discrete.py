@@ -30,6 +30,7 @@ from .broad import (
     RULE_POSE,
     RULE_SWEPT,
     abs_rotation,
+    grown_rows,
     half_area,
     oriented_boxes_overlap,
     overlapping_leaves,
@@ -88,8 +89,9 @@ def object_world_boxes(ps, rp0, rp1, motion, extra, margin):
     for o in range(n):
         root = ps.root[ps.object_mesh[o]]
         w_lo, w_hi = swept_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o], motion[o])
-        lo[o] = w_lo - (margin[o] + extra)
-        hi[o] = w_hi + (margin[o] + extra)
+        for c in range(3):
+            lo[o, c] = w_lo[c] - (margin[o] + extra)
+            hi[o, c] = w_hi[c] + (margin[o] + extra)
     return lo, hi
 
 
@@ -109,12 +111,15 @@ def start_descent(ps, rp0, rp1, motion, a, b, scratch, stack):
     """Set up the tandem descent of objects a and b for poses rp0 -> rp1 (N, 3, 4) and
     motion rows (N, MOTION_WIDTH): their poses and motions into scratch (PairScratch),
     their roots as the only row of stack (int64 (cap, 2)). Returns top = 1."""
-    scratch.pose[0] = rp0[a]
-    scratch.pose[1] = rp1[a]
-    scratch.pose[2] = rp0[b]
-    scratch.pose[3] = rp1[b]
-    scratch.motion[0] = motion[a]
-    scratch.motion[1] = motion[b]
+    for i in range(3):  # element by element: no slice assignment (and its error path) to compile
+        for j in range(4):
+            scratch.pose[0, i, j] = rp0[a, i, j]
+            scratch.pose[1, i, j] = rp1[a, i, j]
+            scratch.pose[2, i, j] = rp0[b, i, j]
+            scratch.pose[3, i, j] = rp1[b, i, j]
+    for j in range(scratch.motion.shape[1]):
+        scratch.motion[0, j] = motion[a, j]
+        scratch.motion[1, j] = motion[b, j]
     stack[0, 0] = ps.root[ps.object_mesh[a]]
     stack[0, 1] = ps.root[ps.object_mesh[b]]
     return np.int64(1)  # not a literal: one compiled overlapping_leaves
@@ -202,7 +207,7 @@ def _still_touching(ps, rp, f, a, b, static, stamp, world, previous_keys, previo
 def _frame_keys(hits, start, stop, n_objects):
     """Sorted keys a * N + b of hits[start:stop] (one frame's) and their triangle pairs."""
     keys = hits[start:stop, HIT_A] * n_objects + hits[start:stop, HIT_B]
-    order = np.argsort(keys)
+    order = np.argsort(keys, kind="mergesort")  # the sort sweep_and_prune compiles too
     tris = np.empty((stop - start, 2), np.int64)
     for k in range(stop - start):
         tris[k, 0] = hits[start + order[k], HIT_TRI_A]
@@ -350,9 +355,7 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
                         best_b = tri_b
             continue
         if top + 2 > stack.shape[0]:
-            grown = np.empty((2 * stack.shape[0], 2), np.int64)
-            grown[:top] = stack[:top]
-            stack = grown
+            stack = grown_rows(stack, top)
         # open the node that is not a leaf, or the larger of two inner nodes (as overlapping_leaves)
         open_a = leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb]))
         c0 = first[na] if open_a else first[nb]

@@ -258,7 +258,10 @@ def pose_at(m, rp0, rp1, t, out):
     A b + p equals points_at's position of every body point. Exact at t = 0 and 1;
     rigid up to the input's own departure from rigidity."""
     if t == 0.0 or t == 1.0:
-        out[:, :] = rp0 if t == 0.0 else rp1
+        end = rp0 if t == 0.0 else rp1
+        for i in range(3):
+            for j in range(4):
+                out[i, j] = end[i, j]
         return
     if m[M_THETA] == 0.0:
         for i in range(3):

@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .broad import grown_rows
 from .ccd import ccd_work
 from .jit import njit
 from .motion import M_ETA, point_deviation, triangle_pair_contact
@@ -72,9 +73,7 @@ def triangle_boxes_overlap(p, q):
 def append_row(buf, n, row):
     """Append ``row`` to the (cap, w) buffer holding n rows; grows by doubling."""
     if n == buf.shape[0]:
-        grown = np.empty((max(2 * n, 16), buf.shape[1]), buf.dtype)
-        grown[:n] = buf[:n]
-        buf = grown
+        buf = grown_rows(buf, n)
     for c in range(buf.shape[1]):
         buf[n, c] = row[c]
     return buf, n + 1
@@ -248,9 +247,26 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
                     row[1] = tri_b
                     windows, _ = append_row(windows, n, times)
                     out, n = append_row(out, n, row)
-    order = np.argsort(out[:n, 0] * (out[:n, 1].max() + 1) + out[:n, 1]) if n > 0 else np.arange(0)
-    out[:n] = out[:n][order]
-    return out, n, windows[:n][order]
+    span = 0  # order by (tri_a, tri_b): keys tri_a * span + tri_b
+    for r in range(n):
+        span = max(span, out[r, 1] + 1)
+    keys = np.empty(n, np.int64)
+    for r in range(n):
+        keys[r] = out[r, 0] * span + out[r, 1]
+    order = np.argsort(keys, kind="mergesort")
+    windows = windows[:n]
+    _reorder_rows(out, order)
+    _reorder_rows(windows, order)
+    return out, n, windows
+
+
+@njit(cache=True)
+def _reorder_rows(rows, order):
+    """In place: row r of rows (cap, w) becomes its old row order[r], r < len(order)."""
+    old = rows[:order.shape[0]].copy()
+    for r in range(order.shape[0]):
+        for c in range(rows.shape[1]):
+            rows[r, c] = old[order[r], c]
 
 
 @njit(cache=True)

@@ -27,7 +27,9 @@ from pathlib import Path
 
 #: units of work and the kernels they compile
 UNITS = {
-    "continuous": ("scan_intervals",),
+    # the CCD first: while this process compiles it, the discrete unit's process caches
+    # the kernels both scans share, which scan_intervals then loads instead of compiling
+    "continuous": ("triangle_pair_contact", "scan_intervals"),
     "discrete": ("scan_frames", "smallest_touching_pairs"),
     "setup": ("bvh", "motion", "contact_point"),
     "lbvh": ("lbvh",),
@@ -195,6 +197,17 @@ def _scan_intervals(ps, poses, static, pairs):
     scan_intervals(ps, poses, static, pairs, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, 1, 1e-6, 1e-9)
 
 
+def _triangle_pair_contact(ps, poses, static, pairs):
+    import numpy as np
+
+    from .ccd import ccd_work
+    from .motion import MOTION_WIDTH, triangle_pair_contact
+    m = np.zeros(MOTION_WIDTH)
+    p = np.ascontiguousarray(np.eye(3))
+    work = ccd_work()
+    triangle_pair_contact(m, m, p, p, p + 2.0, p + 2.0, 0.0, 0.0, 1e-6, 1e-9, 1.0, False, work, work.counts)
+
+
 def _bvh(ps, poses, static, pairs):
     pass  # compile_unit's pack_scene has built the BVHs with the real builder
 
@@ -227,8 +240,8 @@ def _contact_point(ps, poses, static, pairs):
 
 
 _KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_touching_pairs,
-            "scan_intervals": _scan_intervals, "bvh": _bvh, "lbvh": _lbvh, "motion": _motion,
-            "contact_point": _contact_point}
+            "scan_intervals": _scan_intervals, "triangle_pair_contact": _triangle_pair_contact, "bvh": _bvh,
+            "lbvh": _lbvh, "motion": _motion, "contact_point": _contact_point}
 
 
 if __name__ == "__main__":

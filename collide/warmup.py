@@ -36,9 +36,9 @@ UNITS = {
 }
 #: which units a scan of each mode needs (``lbvh``: only scans with ``--split lbvh``)
 MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("continuous", "discrete", "setup")}
-#: seconds each unit takes to compile alone (2-core machine, numba 0.68): for sharing
-#: units among processes so that the longest process ends first possible
-COMPILE_SECONDS = {"continuous": 60.0, "discrete": 38.0, "setup": 18.0, "lbvh": 12.0}
+#: seconds each unit takes to compile alone (2-core machine, numba 0.68, 2026-12-02): for
+#: sharing units among processes so that the longest process ends first possible
+COMPILE_SECONDS = {"continuous": 41.0, "discrete": 20.0, "setup": 12.0, "lbvh": 12.0}
 
 
 def plan(units, processes, busy=()):

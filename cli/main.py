@@ -153,6 +153,10 @@ def verbosity_options(command):
                         help="Less output on stderr (no progress, no warnings).")(command)
 
 
+#: steps of scan's progress bar (its work units are weighted by cost, not counted)
+_BAR_STEPS = 1000
+
+
 def _progress_bar(total, label):
     """A click progress bar on stderr when it is a terminal and not quiet, else None."""
     if _state["verbosity"] < 0 or not sys.stderr.isatty():
@@ -371,16 +375,18 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
             sys.stderr.flush()
 
     def progress(done, total):
+        """The scan's work so far (weighted units, see collide.scan) on a bar of 1000 steps."""
         nonlocal bar
         if bar is None:
             if live:
                 sys.stderr.write("\r\033[K")
-            bar = _progress_bar(total, "frames and steps" if mode == "continuous" else "frames")
+            bar = _progress_bar(_BAR_STEPS, "scanning frames and steps" if mode == "continuous" else "scanning frames")
             if bar is None:
                 return
             bar.__enter__()
-        bar.update(done - state["done"])
-        state["done"] = done
+        position = min(_BAR_STEPS, int(_BAR_STEPS * done / total)) if total > 0 else _BAR_STEPS
+        bar.update(position - state["done"])
+        state["done"] = position
 
     from collide.jit_events import report_to
     if _state["verbosity"] >= 0:  # -q: only the log line, which -q silences

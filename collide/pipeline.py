@@ -126,15 +126,49 @@ def _chunks(n_items, workers, max_size=64):
 
 
 class _Progress:
-    """Counts finished work units (frames or motion steps) and reports them."""
+    """Reports finished work to ``callback(done, total)`` in work units, so that the share
+    done (and an ETA from it) follows time rather than item counts: a frame is one unit,
+    a motion step (continuous mode) weighs what a step has cost so far per frame's cost
+    (STEP_WEIGHT before both have been timed). Time between two reports is charged to
+    the kind of item the second one reports. ``done`` never decreases and ends equal to
+    ``total``; ``total`` is an estimate until then and may change as it improves."""
 
-    def __init__(self, total, callback):
-        self.total, self.done, self.callback = total, 0, callback
+    #: the cost of a motion step in frames before any is timed (swept tests cost 1.5-3
+    #: frame tests on the benchmark scenes: benchmarks/bench_frames.py, bench_bodies.py)
+    STEP_WEIGHT = 2.0
 
-    def add(self, n):
-        self.done += n
+    def __init__(self, n_frames, n_steps, callback, clock=time.perf_counter):
+        self.left = {"frames": n_frames, "steps": n_steps}
+        self.items = {"frames": 0, "steps": 0}
+        self.seconds = {"frames": 0.0, "steps": 0.0}
+        self.done = 0.0
+        self.callback, self.clock = callback, clock
+        self.last = clock()
+
+    def step_weight(self):
+        """Estimated cost of a motion step, in frames."""
+        if self.items["frames"] and self.items["steps"] and self.seconds["frames"] > 0:
+            return (self.seconds["steps"] / self.items["steps"]) / (self.seconds["frames"] / self.items["frames"])
+        return self.STEP_WEIGHT
+
+    def frames(self, n):
+        """n more frames tested."""
+        self._add("frames", n)
+
+    def steps(self, n):
+        """n more motion steps tested."""
+        self._add("steps", n)
+
+    def _add(self, kind, n):
+        now = self.clock()
+        self.seconds[kind] += now - self.last
+        self.last = now
+        self.items[kind] += n
+        self.left[kind] -= n
+        self.done += n * (1.0 if kind == "frames" else self.step_weight())
         if self.callback is not None:
-            self.callback(self.done, self.total)
+            left = self.left["frames"] + self.left["steps"] * self.step_weight()
+            self.callback(self.done, self.done + left)
 
 
 def _run_chunks(kernel, shared, extra, n_items, workers, progress, scheduler=None):
@@ -168,7 +202,7 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
                         pending[j] = pool.submit(kernel, *shared, chunks[j][0], chunks[j][1], *extra)
                 result = pending.pop(i).result()
                 if progress is not None:
-                    progress.add(chunks[i][1] - chunks[i][0])
+                    progress(chunks[i][1] - chunks[i][0])
                 yield chunks[i], result
         finally:
             for future in pending.values():
@@ -204,7 +238,7 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
             i = index[future.key]
             results[i] = future.result()
             if progress is not None:
-                progress.add(chunks[i][1] - chunks[i][0])
+                progress(chunks[i][1] - chunks[i][0])
     return list(zip(chunks, results))
 
 
@@ -253,7 +287,7 @@ def _scan_blocks(ps, poses, static, filters, pair_sink, continuous, interpolatio
     for offset, block in poses.blocks(overlap=1 if continuous else 0):
         own = min(poses.block, block.shape[0])  # frames of this block; the rest is the next one's first
         block_hits, block_counts = _run_discrete(ps, block, own, offset, static, filters, pair_sink, workers,
-                                                 progress, scheduler)
+                                                 progress.frames, scheduler)
         hits.append(block_hits)
         counts.append(block_counts)
         if continuous and block.shape[0] > 1:
@@ -264,7 +298,7 @@ def _scan_blocks(ps, poses, static, filters, pair_sink, continuous, interpolatio
                 known = np.concatenate([block_hits, next_hits.reshape(-1, HIT_WIDTH) + _frame_shift(offset)])
             block_ids, block_fractions, swept_counts = _run_swept(
                 ps, block, static, filters, known - _frame_shift(offset), interpolation, time_tol, dist_tol,
-                workers, progress, scheduler)
+                workers, progress.steps, scheduler)
             block_ids[:, SWEPT_STEP] += offset
             ids.append(block_ids)
             fractions.append(block_fractions)
@@ -562,7 +596,7 @@ def _finish_warm_up(compiling):
     workers, own = compiling
     processes = len(workers.processes)
     announce(f"compiling collide's numba kernels for this machine here and in {processes} more "
-             f"process{'es' if processes > 1 else ''} (first run only: about a minute; later runs load them "
+             f"process{'es' if processes > 1 else ''} (first run only: under a minute; later runs load them "
              f"from {kernel_cache_dir()})")
     try:
         for unit in own:
@@ -666,8 +700,10 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     motion warns of under-sampling; ``ignore`` and ``only``: object pairs to skip,
     or to check alone, as 'A:B' name globs or (A, B) pairs (added to the
     trajectory's filters/ignore); ``glob``: which files of the meshes folder are
-    meshes. ``progress(done, total)`` is called as work completes (frames, plus motion
-    steps in continuous mode); ``stage(text)`` as each stage begins ("loading inputs",
+    meshes. ``progress(done, total)`` is called as work completes, in work units
+    (floats): a frame is one unit, a motion step (continuous mode) weighs what steps
+    have cost per frame's cost so far; ``total`` is an estimate that may change until
+    ``done`` reaches it; ``stage(text)`` as each stage begins ("loading inputs",
     "building BVHs", "preparing kernels", "scanning", "contact points"). With ``output``
     the result is also written there (atomically; never over an input).
     ``max_memory`` and ``allow_external_data``: see load.load_trajectory. ``cache=False``
@@ -702,7 +738,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
             pair_sink = TrianglePairs(TrianglePairWriter(h5) if h5 is not None else None)
         start = time.perf_counter()
         stage("scanning")
-        work = _Progress(index.size + (index.size - 1 if continuous else 0), progress)
+        work = _Progress(index.size, index.size - 1 if continuous else 0, progress)
         hits, ids, fractions, counts = _scan_blocks(ps, poses, scene.static, filters, pair_sink, continuous,
                                                     interpolation, time_tol, dist_tol, workers, work, scheduler)
         if continuous:

@@ -8,6 +8,7 @@ from conftest import REPO
 import collide
 from collide.errors import InputError, UsageError
 from collide.load import load_mesh, load_trajectory
+from collide.pipeline import _Progress
 
 FIXTURE = REPO / "examples" / "fixture"
 
@@ -93,5 +94,30 @@ def test_stage_and_progress_callbacks_cover_the_whole_scan(mode):
     assert [s.split(" (")[0] for s in stages] == ["loading inputs", "building BVHs", "preparing kernels", "scanning",
                                                    "contact points"]
     frames = result.frame_index.size
-    total = frames + (frames - 1 if mode == "continuous" else 0)
-    assert done[-1] == (total, total) and all(b[0] > a[0] for a, b in zip(done, done[1:]))
+    assert done[-1][0] == done[-1][1] and all(b[0] > a[0] for a, b in zip(done, done[1:]))
+    if mode == "discrete":  # frames only: one unit each
+        assert done[-1] == (frames, frames)
+    else:  # at least one unit per frame, and steps weigh something
+        assert done[-1][0] > frames
+
+
+def test_progress_share_follows_time_not_item_counts():
+    """Frames costing 0.1 s and steps 0.3 s each (a fake clock): once both have been
+    timed, the share reported done equals the share of the scan's time spent; before
+    that, steps weigh the prior STEP_WEIGHT."""
+    now = [0.0]
+    reports = []
+    work = _Progress(40, 39, lambda done, total: reports.append((done, total, now[0])), clock=lambda: now[0])
+    for n in (10, 10, 10, 10):
+        now[0] += 0.1 * n
+        work.frames(n)
+    for n in (10, 10, 10, 9):
+        now[0] += 0.3 * n
+        work.steps(n)
+    total_time = 0.1 * 40 + 0.3 * 39
+    for done, total, at in reports[:4]:
+        assert total == pytest.approx(40 + 39 * _Progress.STEP_WEIGHT)
+    for done, total, at in reports[4:]:
+        assert done / total == pytest.approx(at / total_time, rel=1e-12)
+    assert reports[-1][0] == reports[-1][1]
+    assert all(b[0] > a[0] for a, b in zip(reports, reports[1:]))

@@ -639,10 +639,13 @@ def urdf(robot, joints, output, meshes_out, geometry, ignore_adjacent, force):
 @cli.command()
 @click.option("--mode", "modes", type=click.Choice(["continuous", "discrete"]), multiple=True,
               help="Prepare the kernels of this scan mode only [default: both].")
+@click.option("--split", "splits", type=click.Choice(config.SPLIT_RULES), multiple=True,
+              help="Also prepare the BVH builder of this rule (sah, median and mean share one, always "
+                   "prepared; lbvh has its own) [default: sah].")
 @click.option("--workers", type=click.IntRange(min=1, max=config.MAX_WORKERS), default=None,
               help="Processes compiling at once [default: all cores].")
 @verbosity_options
-def warmup(modes, workers):
+def warmup(modes, splits, workers):
     """Compile collide's numba kernels for this machine now (in parallel processes), so
     that the first scan starts at once; e.g. in a CI step or a container build. A warm
     cache makes this a fraction of a second."""
@@ -652,7 +655,8 @@ def warmup(modes, workers):
     def progress(units, seconds):
         click.echo(f"{units}: " + ("failed (a scan compiles what it needs itself)" if seconds is None
                                    else f"{seconds:.1f} s"))
-    _, seconds = warm_up(modes or ("discrete", "continuous"), workers, progress)
+    _, seconds = warm_up(modes or ("discrete", "continuous"), workers, progress,
+                         extra=("lbvh",) if "lbvh" in splits else ())
     click.echo(f"kernels ready in {seconds:.1f} s -> {kernel_cache_dir()}")
 
 

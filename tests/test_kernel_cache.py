@@ -55,3 +55,27 @@ def test_a_changed_source_file_compiles_afresh(tmp_path):
         f.write("\n# an edit\n")
     second = probe(changed, kernels)
     assert second["folder"] != first["folder"] and "pair_selected" in second["compiled"]
+
+
+def test_warmup_command_adds_the_lbvh_builder_only_when_asked(monkeypatch):
+    """`collide warmup --split lbvh` also compiles the lbvh builder's unit; without it,
+    or with a rule that shares the default builder, the unit is left out (the worker
+    processes are replaced by a recorder: this checks what they would be given)."""
+    from conftest import run_cli
+
+    from collide import warmup
+    given = []
+
+    class Recorder:
+        def __init__(self, groups):
+            given.append(sorted(unit for group in groups for unit in group))
+
+        def finish(self, progress=None):
+            return {}, 0.0
+
+    monkeypatch.setattr(warmup, "start", Recorder)
+    monkeypatch.setattr(warmup, "mark_warm", lambda mode: None)  # nothing was compiled
+    for args in (["--split", "lbvh"], [], ["--split", "median"], ["--mode", "discrete", "--split", "lbvh"]):
+        assert run_cli("warmup", *args).returncode == 0
+    assert given == [["continuous", "discrete", "lbvh", "setup"], ["continuous", "discrete", "setup"],
+                     ["continuous", "discrete", "setup"], ["discrete", "lbvh", "setup"]]

@@ -294,19 +294,22 @@ def _plane_vectors(kind, x_t0, x_t1, t, out, first):
 
 
 @njit(cache=True)
-def _det_rows(m, i, j, k):
-    """Determinant of the 3 x 3 matrix with rows m[i], m[j], m[k]."""
-    return (m[i, 0] * (m[j, 1] * m[k, 2] - m[j, 2] * m[k, 1])
-            - m[i, 1] * (m[j, 0] * m[k, 2] - m[j, 2] * m[k, 0])
-            + m[i, 2] * (m[j, 0] * m[k, 1] - m[j, 1] * m[k, 0]))
+def _det(a, b, c):
+    """Determinant of the 3 x 3 matrix with rows a, b, c (3,). (Rows, not a matrix and
+    row numbers: constant row numbers would compile one copy per combination.)"""
+    return (a[0] * (b[1] * c[2] - b[2] * c[1])
+            - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]))
 
 
 @njit(cache=True)
-def _edge_bound(vectors, row, m, axis):
-    """Bound on |exact coordinate axis| of vector row over the time range whose ends are
-    in rows row and row + 3 of vectors (_plane_vectors): the larger computed end plus
+def _edge_bounds(start, end, m):
+    """Bounds (3-tuple) on the |exact coordinates| of a vector over the time range whose
+    computed ends are start and end (3,) (_plane_vectors): the larger computed end plus
     their rounding (12.1 u m, module docstring)."""
-    return max(abs(vectors[row, axis]), abs(vectors[row + 3, axis])) + 16.0 * _UNIT_ROUNDOFF * m[axis]
+    slack = 16.0 * _UNIT_ROUNDOFF
+    return (max(abs(start[0]), abs(end[0])) + slack * m[0], max(abs(start[1]), abs(end[1])) + slack * m[1],
+            max(abs(start[2]), abs(end[2])) + slack * m[2])
 
 
 @njit(cache=True)
@@ -316,18 +319,15 @@ def _coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
     dist_tol * N (inf or nan when it overflows). vectors: (6, 3) scratch."""
     _plane_vectors(kind, x_t0, x_t1, t_lo, vectors, np.int64(0))
     _plane_vectors(kind, x_t0, x_t1, t_hi, vectors, np.int64(3))
-    b0 = _det_rows(vectors, 0, 1, 2)
-    b3 = _det_rows(vectors, 3, 4, 5)
-    s1 = _det_rows(vectors, 3, 1, 2) + _det_rows(vectors, 0, 4, 2) + _det_rows(vectors, 0, 1, 5)
-    s2 = _det_rows(vectors, 0, 4, 5) + _det_rows(vectors, 3, 1, 5) + _det_rows(vectors, 3, 4, 2)
+    a_lo, b_lo, c_lo, a_hi, b_hi, c_hi = vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5]
+    b0 = _det(a_lo, b_lo, c_lo)
+    b3 = _det(a_hi, b_hi, c_hi)
+    s1 = _det(a_hi, b_lo, c_lo) + _det(a_lo, b_hi, c_lo) + _det(a_lo, b_lo, c_hi)
+    s2 = _det(a_lo, b_hi, c_hi) + _det(a_hi, b_lo, c_hi) + _det(a_hi, b_hi, c_lo)
     bound = _COPLANARITY_ROUNDING * _UNIT_ROUNDOFF * (m[0] * m[1] * m[2]) + _COPLANARITY_UNDERFLOW
     if dist_tol > 0.0:
-        a0 = _edge_bound(vectors, 0, m, 0)
-        a1 = _edge_bound(vectors, 0, m, 1)
-        a2 = _edge_bound(vectors, 0, m, 2)
-        c0 = _edge_bound(vectors, 1, m, 0)
-        c1 = _edge_bound(vectors, 1, m, 1)
-        c2 = _edge_bound(vectors, 1, m, 2)
+        a0, a1, a2 = _edge_bounds(a_lo, a_hi, m)
+        c0, c1, c2 = _edge_bounds(b_lo, b_hi, m)
         normal = (a1 * c2 + a2 * c1) + (a0 * c2 + a2 * c0) + (a0 * c1 + a1 * c0)
         bound += normal * dist_tol * (1.0 + 2.0 ** -48)  # covers the roundings of normal and bound
     return b0, s1, s2, b3, bound

@@ -297,7 +297,8 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     t_first = np.inf
     best_a = -1
     best_b = -1
-    by_start = np.argsort(windows[:, 0], kind="mergesort")  # stable: ties stay in (tri_a, tri_b) order
+    # stable sorts (ties stay in (tri_a, tri_b) order) of contiguous copies: one compiled sort
+    by_start = np.argsort(windows[:, 0].copy(), kind="mergesort")
     for i in range(n if find_first else 0):  # earliest contact
         k = by_start[i]
         if windows[k, 0] > t_first:

@@ -225,15 +225,18 @@ def _build(box_lo, box_hi, centre, rule, leaf_size, n_bins, traversal_cost):
     ids = np.arange(n)
     # stack of (node, start, stop) still to be processed
     stack = np.empty((max_nodes, 3), np.int64)
-    stack[0] = (0, 0, n)
+    stack[0, 0] = 0  # the root: node 0 holds every primitive
+    stack[0, 1] = 0
+    stack[0, 2] = n
     top = 1
     n_nodes = 1
     while top > 0:
         top -= 1
         node, start, stop = stack[top, 0], stack[top, 1], stack[top, 2]
         lo, hi, c_lo, c_hi = _range_bounds(ids, start, stop, box_lo, box_hi, centre)
-        node_lo[node] = lo
-        node_hi[node] = hi
+        for c in range(3):  # element by element, as _push
+            node_lo[node, c] = lo[c]
+            node_hi[node, c] = hi[c]
         mid = -1
         if stop - start > 1:
             if rule == 0:
@@ -252,11 +255,19 @@ def _build(box_lo, box_hi, centre, rule, leaf_size, n_bins, traversal_cost):
         n_nodes += 2
         first[node] = left
         count[node] = 0
-        stack[top] = (left + 1, mid, stop)
-        stack[top + 1] = (left, start, mid)
-        top += 2
+        top = _push(stack, top, (left + 1, mid, stop))
+        top = _push(stack, top, (left, start, mid))
     return (node_lo[:n_nodes].copy(), node_hi[:n_nodes].copy(),
             first[:n_nodes].copy(), count[:n_nodes].copy(), ids)
+
+
+@njit(cache=True)
+def _push(stack, top, row):
+    """Put the int64 tuple row on row top of stack (int64 (cap, len(row))), element by
+    element (a row assignment compiles numba's shape-error path); returns top + 1."""
+    for c in range(len(row)):
+        stack[top, c] = row[c]
+    return top + 1
 
 
 # --- the lbvh builder (bottom-up, parallel) -------------------------------------------
@@ -387,7 +398,9 @@ def _radix_layout(split, n, leaf_size):
     count = np.zeros(max_nodes, np.int64)
     # stack of (output node, radix node, first primitive, last primitive), all inner nodes
     stack = np.empty((n, 4), np.int64)
-    stack[0] = (0, 0, 0, n - 1)
+    for c in range(3):  # the root: every primitive, 0 to n - 1
+        stack[0, c] = 0
+    stack[0, 3] = n - 1
     top = 1
     n_nodes = 1
     while top > 0:
@@ -401,14 +414,12 @@ def _radix_layout(split, n, leaf_size):
             first[left + 1] = s + 1
             count[left + 1] = b - s
         else:
-            stack[top] = (left + 1, s + 1, s + 1, b)
-            top += 1
+            top = _push(stack, top, (left + 1, s + 1, s + 1, b))
         if s - a + 1 <= leaf_size:
             first[left] = a
             count[left] = s - a + 1
         else:
-            stack[top] = (left, s, a, s)
-            top += 1
+            top = _push(stack, top, (left, s, a, s))
     return first[:n_nodes].copy(), count[:n_nodes].copy()
 
 
@@ -484,14 +495,16 @@ def _sah_collapse(first, count, lo, hi, leaf_size, traversal_cost):
     out_first = np.zeros(n_nodes, np.int64)
     out_count = np.zeros(n_nodes, np.int64)
     stack = np.empty((n_nodes, 2), np.int64)   # (node, output node)
-    stack[0] = (0, 0)
+    stack[0, 0] = 0  # the root, output as node 0
+    stack[0, 1] = 0
     top = 1
     used = 1
     while top > 0:
         top -= 1
         node, out = stack[top, 0], stack[top, 1]
-        out_lo[out] = lo[node]
-        out_hi[out] = hi[node]
+        for c in range(3):  # element by element, as _push
+            out_lo[out, c] = lo[node, c]
+            out_hi[out, c] = hi[node, c]
         if leaf[node]:
             out_first[out] = start[node]
             out_count[out] = size[node]
@@ -499,9 +512,8 @@ def _sah_collapse(first, count, lo, hi, leaf_size, traversal_cost):
         left = used
         used += 2
         out_first[out] = left
-        stack[top] = (first[node] + 1, left + 1)
-        stack[top + 1] = (first[node], left)
-        top += 2
+        top = _push(stack, top, (first[node] + 1, left + 1))
+        top = _push(stack, top, (first[node], left))
     return out_lo, out_hi, out_first, out_count
 
 

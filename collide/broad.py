@@ -84,12 +84,8 @@ def sweep_and_prune(lo, hi):
     keys = np.empty(k, np.int64)  # sort by (a, b)
     for r in range(k):
         keys[r] = pairs[r, 0] * n + pairs[r, 1]
-    sort = np.argsort(keys, kind="mergesort")
-    out = np.empty((k, 2), np.int64)
-    for r in range(k):
-        out[r, 0] = pairs[sort[r], 0]
-        out[r, 1] = pairs[sort[r], 1]
-    return out
+    reorder_rows(pairs, np.argsort(keys, kind="mergesort"))
+    return pairs[:k].copy()
 
 
 @njit(cache=True)
@@ -369,3 +365,12 @@ def grown_rows(rows, n):
         for j in range(rows.shape[1]):
             grown[i, j] = rows[i, j]
     return grown
+
+
+@njit(cache=True)
+def reorder_rows(rows, order):
+    """In place: row r of rows (cap, w) becomes its old row order[r], r < len(order)."""
+    old = rows[:order.shape[0]].copy()
+    for r in range(order.shape[0]):
+        for c in range(rows.shape[1]):
+            rows[r, c] = old[order[r], c]

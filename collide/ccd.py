@@ -326,9 +326,9 @@ def _coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
     s2 = _det(a_lo, b_hi, c_hi) + _det(a_hi, b_lo, c_hi) + _det(a_hi, b_hi, c_lo)
     bound = _COPLANARITY_ROUNDING * _UNIT_ROUNDOFF * (m[0] * m[1] * m[2]) + _COPLANARITY_UNDERFLOW
     if dist_tol > 0.0:
-        a0, a1, a2 = _edge_bounds(a_lo, a_hi, m)
-        c0, c1, c2 = _edge_bounds(b_lo, b_hi, m)
-        normal = (a1 * c2 + a2 * c1) + (a0 * c2 + a2 * c0) + (a0 * c1 + a1 * c0)
+        ea0, ea1, ea2 = _edge_bounds(a_lo, a_hi, m)  # bounds on |a| and |b|, per axis
+        eb0, eb1, eb2 = _edge_bounds(b_lo, b_hi, m)
+        normal = (ea1 * eb2 + ea2 * eb1) + (ea0 * eb2 + ea2 * eb0) + (ea0 * eb1 + ea1 * eb0)
         bound += normal * dist_tol * (1.0 + 2.0 ** -48)  # covers the roundings of normal and bound
     return b0, s1, s2, b3, bound
 

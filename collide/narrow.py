@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .broad import grown_rows
+from .broad import grown_rows, reorder_rows
 from .ccd import ccd_work
 from .jit import njit
 from .motion import M_ETA, point_deviation, triangle_pair_contact
@@ -255,18 +255,9 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
         keys[r] = out[r, 0] * span + out[r, 1]
     order = np.argsort(keys, kind="mergesort")
     windows = windows[:n]
-    _reorder_rows(out, order)
-    _reorder_rows(windows, order)
+    reorder_rows(out, order)
+    reorder_rows(windows, order)
     return out, n, windows
-
-
-@njit(cache=True)
-def _reorder_rows(rows, order):
-    """In place: row r of rows (cap, w) becomes its old row order[r], r < len(order)."""
-    old = rows[:order.shape[0]].copy()
-    for r in range(order.shape[0]):
-        for c in range(rows.shape[1]):
-            rows[r, c] = old[order[r], c]
 
 
 @njit(cache=True)

@@ -132,7 +132,8 @@ def _orient2d_exact_diffs(acx, acy, bcx, bcy):
 def orient2d(ax, ay, bx, by, cx, cy):
     """Exact sign of det[[ax-cx, ay-cy], [bx-cx, by-cy]].
 
-    +1 when a, b, c turn counter-clockwise, -1 clockwise, 0 when collinear.
+    +1 when a, b, c turn counter-clockwise, -1 clockwise, 0 when collinear. The
+    filter is small enough to be inlined; the rare undecided case is a separate call.
     """
     acx = ax - cx
     acy = ay - cy
@@ -146,9 +147,25 @@ def orient2d(ax, ay, bx, by, cx, cy):
         return 1
     if -det > bound:
         return -1
+    return _orient2d_undecided(ax, ay, bx, by, cx, cy)
+
+
+@njit(cache=True)
+def _orient2d_undecided(ax, ay, bx, by, cx, cy):
+    """orient2d where the floating-point filter could not decide: exact."""
+    if ((ax == cx and ay == cy) or (bx == cx and by == cy)
+            or (ax == cx and bx == cx) or (ay == cy and by == cy)):
+        # a row or column of the matrix is exactly zero, and so is the determinant
+        # (a == c, b == c, or the points on one axis-parallel line), told by comparing
+        # coordinates, with no rounding
+        return 0
+    acx = ax - cx
+    acy = ay - cy
+    bcx = bx - cx
+    bcy = by - cy
     if (_exact_difference(ax, cx, acx) and _exact_difference(ay, cy, acy) and _exact_difference(bx, cx, bcx)
             and _exact_difference(by, cy, bcy)):
-        if left == 0.0 and right == 0.0:
+        if acx * bcy == 0.0 and acy * bcx == 0.0:
             return 0  # both exact products are zero (they cannot underflow: _exact_difference)
         return _orient2d_exact_diffs(acx, acy, bcx, bcy)  # the differences are exact: a short expansion
     return _orient2d_exact(ax, ay, bx, by, cx, cy)
@@ -200,15 +217,26 @@ def orient3d(a, b, c, d):
     Zero when the four points are coplanar; the sign tells on which side of the
     plane through a, b, c the point d lies.
     """
-    adx = a[0] - d[0]
-    ady = a[1] - d[1]
-    adz = a[2] - d[2]
-    bdx = b[0] - d[0]
-    bdy = b[1] - d[1]
-    bdz = b[2] - d[2]
-    cdx = c[0] - d[0]
-    cdy = c[1] - d[1]
-    cdz = c[2] - d[2]
+    return orient3d_xyz(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
+
+
+@njit(cache=True)
+def orient3d_xyz(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
+    """orient3d of the points (ax, ay, az), ..., (dx, dy, dz), given as 12 float64.
+
+    Scalars on purpose: this filter is small enough to be inlined into its callers,
+    and scalar arguments cost no reference counting when it is not; the rare
+    undecided case is a separate call (_orient3d_undecided).
+    """
+    adx = ax - dx
+    ady = ay - dy
+    adz = az - dz
+    bdx = bx - dx
+    bdy = by - dy
+    bdz = bz - dz
+    cdx = cx - dx
+    cdy = cy - dy
+    cdz = cz - dz
     m1 = bdy * cdz
     m2 = bdz * cdy
     m3 = cdy * adz
@@ -223,19 +251,41 @@ def orient3d(a, b, c, d):
         return 1
     if -det > bound:
         return -1
-    if (_exact_difference(a[0], d[0], adx) and _exact_difference(a[1], d[1], ady)
-            and _exact_difference(a[2], d[2], adz) and _exact_difference(b[0], d[0], bdx)
-            and _exact_difference(b[1], d[1], bdy) and _exact_difference(b[2], d[2], bdz)
-            and _exact_difference(c[0], d[0], cdx) and _exact_difference(c[1], d[1], cdy)
-            and _exact_difference(c[2], d[2], cdz)):
+    return _orient3d_undecided(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
+
+
+@njit(cache=True)
+def _orient3d_undecided(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
+    """orient3d where the floating-point filter could not decide: exact."""
+    if (ax == dx and bx == dx and cx == dx) or (ay == dy and by == dy and cy == dy) or (
+            az == dz and bz == dz and cz == dz):
+        # a column of [a-d; b-d; c-d] is exactly zero, and so is the determinant: the
+        # points lie in one axis-parallel plane (a floor at z = 0, faces of boxes that
+        # are not turned), told by comparing coordinates, with no rounding
+        return 0
+    adx = ax - dx
+    ady = ay - dy
+    adz = az - dz
+    bdx = bx - dx
+    bdy = by - dy
+    bdz = bz - dz
+    cdx = cx - dx
+    cdy = cy - dy
+    cdz = cz - dz
+    if (_exact_difference(ax, dx, adx) and _exact_difference(ay, dy, ady) and _exact_difference(az, dz, adz)
+            and _exact_difference(bx, dx, bdx) and _exact_difference(by, dy, bdy)
+            and _exact_difference(bz, dz, bdz) and _exact_difference(cx, dx, cdx)
+            and _exact_difference(cy, dy, cdy) and _exact_difference(cz, dz, cdz)):
         # the differences are exact (Shewchuk's stage B case, common for coplanar grids):
         # the determinant of the differences themselves, 24 exact terms instead of 96.
         # Their products cannot underflow (_exact_difference), so a zero permanent means
-        # every term is exactly zero (e.g. four points in one axis-aligned plane).
+        # every term is exactly zero.
+        permanent = ((abs(bdy * cdz) + abs(bdz * cdy)) * abs(adx) + (abs(cdy * adz) + abs(cdz * ady)) * abs(bdx)
+                     + (abs(ady * bdz) + abs(adz * bdy)) * abs(cdx))
         if permanent == 0.0:
             return 0
         return _orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz)
-    return _orient3d_exact(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
+    return _orient3d_exact(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
 
 
 @njit(cache=True)
@@ -307,12 +357,28 @@ def _coplanar_segment_meets_triangle(s, i, j, t):
 
 
 @njit(cache=True)
-def triangle_is_degenerate(t):
-    """Exactly: the three points of t (3, 3) are collinear (or coincide): zero area."""
+def _one_to_one_projection(t):
+    """Axes (x, y) on which triangle t (3, 3) has non-zero area (exact), the first of
+    (0, 1), (1, 2), (2, 0); (-1, -1) when t has zero area on all three (is degenerate)."""
     for x, y in ((0, 1), (1, 2), (2, 0)):
         if orient2d(t[0, x], t[0, y], t[1, x], t[1, y], t[2, x], t[2, y]) != 0:
-            return False
-    return True
+            return np.int64(x), np.int64(y)
+    return np.int64(-1), np.int64(-1)
+
+
+@njit(cache=True)
+def _side(t, s, m):
+    """orient3d(t[0], t[1], t[2], s[m]) for triangles t and s (3, 3): the side of t's plane
+    that point m of s is on."""
+    return orient3d_xyz(t[0, 0], t[0, 1], t[0, 2], t[1, 0], t[1, 1], t[1, 2], t[2, 0], t[2, 1], t[2, 2],
+                        s[m, 0], s[m, 1], s[m, 2])
+
+
+@njit(cache=True)
+def _edge_side(s, i, j, t, k, m):
+    """orient3d(s[i], s[j], t[k], t[m]) for triangles s and t (3, 3)."""
+    return orient3d_xyz(s[i, 0], s[i, 1], s[i, 2], s[j, 0], s[j, 1], s[j, 2], t[k, 0], t[k, 1], t[k, 2],
+                        t[m, 0], t[m, 1], t[m, 2])
 
 
 @njit(cache=True)
@@ -324,23 +390,88 @@ def segment_meets_triangle(s, i, j, t, side_i, side_j):
     """
     if side_i * side_j > 0:
         return False
-    a = s[i]
-    b = s[j]
     if side_i == 0 and side_j == 0:
-        if triangle_is_degenerate(t):
-            # the "triangle" is a segment or a point: the two can only meet
-            # if they are coplanar
-            if (orient3d(a, b, t[0], t[1]) != 0 or orient3d(a, b, t[1], t[2]) != 0
-                    or orient3d(a, b, t[0], t[2]) != 0):
-                return False
+        x, y = _one_to_one_projection(t)
+        if x >= 0:
+            # t spans a plane holding s[i] and s[j]; projecting along an axis the plane is not
+            # parallel to maps it one-to-one onto the (x, y) plane, so they meet there iff
+            # they meet in space
+            return _segment_meets_triangle_2d(s, i, j, t, x, y)
+        # the "triangle" is a segment or a point: the two can only meet
+        # if they are coplanar
+        i0, i1, i2 = np.int64(0), np.int64(1), np.int64(2)
+        if (_edge_side(s, i, j, t, i0, i1) != 0 or _edge_side(s, i, j, t, i1, i2) != 0
+                or _edge_side(s, i, j, t, i0, i2) != 0):
+            return False
         return _coplanar_segment_meets_triangle(s, i, j, t)
     # the segment crosses the (non-degenerate) triangle's plane at one point;
     # that point is in the closed triangle iff the line ab passes on the same
     # side of all three edges (or on one of them)
-    s0 = orient3d(a, b, t[0], t[1])
-    s1 = orient3d(a, b, t[1], t[2])
-    s2 = orient3d(a, b, t[2], t[0])
+    i0, i1, i2 = np.int64(0), np.int64(1), np.int64(2)
+    s0 = _edge_side(s, i, j, t, i0, i1)
+    s1 = _edge_side(s, i, j, t, i1, i2)
+    s2 = _edge_side(s, i, j, t, i2, i0)
     return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
+
+
+@njit(cache=True)
+def _vertex_sides_2d(p, q, x, y):
+    """Exact sides of q's vertices of p's edges on axes (x, y): a 9-tuple whose entry
+    3 * e + k is orient2d(p[e], p[e + 1], q[k]) (edges e = 0, 1, 2; p[3] is p[0])."""
+    return (orient2d(p[0, x], p[0, y], p[1, x], p[1, y], q[0, x], q[0, y]),
+            orient2d(p[0, x], p[0, y], p[1, x], p[1, y], q[1, x], q[1, y]),
+            orient2d(p[0, x], p[0, y], p[1, x], p[1, y], q[2, x], q[2, y]),
+            orient2d(p[1, x], p[1, y], p[2, x], p[2, y], q[0, x], q[0, y]),
+            orient2d(p[1, x], p[1, y], p[2, x], p[2, y], q[1, x], q[1, y]),
+            orient2d(p[1, x], p[1, y], p[2, x], p[2, y], q[2, x], q[2, y]),
+            orient2d(p[2, x], p[2, y], p[0, x], p[0, y], q[0, x], q[0, y]),
+            orient2d(p[2, x], p[2, y], p[0, x], p[0, y], q[1, x], q[1, y]),
+            orient2d(p[2, x], p[2, y], p[0, x], p[0, y], q[2, x], q[2, y]))
+
+
+@njit(cache=True)
+def _inside(sides, k):
+    """Vertex k is in the closed triangle (of non-zero area) whose edge sides are ``sides``
+    (_vertex_sides_2d): on one side of, or on, all three edges."""
+    s0, s1, s2 = sides[k], sides[3 + k], sides[6 + k]
+    return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
+
+
+@njit(cache=True)
+def _coplanar_triangles_meet(p, q, x, y):
+    """Closed triangles p and q (3, 3) in one plane share a point (exact); q has non-zero
+    area on axes (x, y), so projecting along the third axis maps the plane one-to-one
+    and they meet iff their projections do.
+
+    Two convex polygons meet iff a vertex of one lies in the other or an edge of one
+    crosses an edge of the other. The 18 vertex-edge sides decide all of it (orient2d
+    is exact, so permuted arguments give consistent signs); a zero-area p is the union
+    of its edges, covered by the edge tests.
+    """
+    sides_p = _vertex_sides_2d(p, q, x, y)  # q's vertices against p's edges
+    sides_q = _vertex_sides_2d(q, p, x, y)  # p's vertices against q's edges
+    for m in range(3):
+        if _inside(sides_q, m):
+            return True
+    if orient2d(p[0, x], p[0, y], p[1, x], p[1, y], p[2, x], p[2, y]) != 0:
+        for k in range(3):
+            if _inside(sides_p, k):
+                return True
+    for e in range(3):
+        i, j = e, (e + 1) % 3
+        for f in range(3):
+            k, m = f, (f + 1) % 3
+            o1, o2 = sides_p[3 * e + k], sides_p[3 * e + m]
+            o3, o4 = sides_q[3 * f + i], sides_q[3 * f + j]
+            if o1 == 0 and o2 == 0 and o3 == 0 and o4 == 0:
+                # collinear edges: they meet iff their bounding boxes overlap on both axes
+                if (max(p[i, x], p[j, x]) >= min(q[k, x], q[m, x]) and max(q[k, x], q[m, x]) >= min(p[i, x], p[j, x])
+                        and max(p[i, y], p[j, y]) >= min(q[k, y], q[m, y])
+                        and max(q[k, y], q[m, y]) >= min(p[i, y], p[j, y])):
+                    return True
+            elif o1 * o2 <= 0 and o3 * o4 <= 0:
+                return True
+    return False
 
 
 @njit(cache=True)
@@ -350,19 +481,29 @@ def triangles_intersect(p, q):
     Exact for any float64 input, including touching, coplanar and zero-area
     triangles. Two triangles meet iff an edge of one meets the other
     (the ends of their intersection lie on edges), so after a quick
-    both-on-one-side rejection the six edge-triangle tests decide.
+    both-on-one-side rejection the six edge-triangle tests decide; two triangles in
+    one plane take a single 2-D test instead (_coplanar_triangles_meet).
     """
-    side_q0 = orient3d(p[0], p[1], p[2], q[0])
-    side_q1 = orient3d(p[0], p[1], p[2], q[1])
-    side_q2 = orient3d(p[0], p[1], p[2], q[2])
+    i0, i1, i2 = np.int64(0), np.int64(1), np.int64(2)  # one compiled version, not one per literal
+    side_q0 = _side(p, q, i0)
+    side_q1 = _side(p, q, i1)
+    side_q2 = _side(p, q, i2)
     if side_q0 * side_q1 > 0 and side_q0 * side_q2 > 0:
         return False
-    side_p0 = orient3d(q[0], q[1], q[2], p[0])
-    side_p1 = orient3d(q[0], q[1], q[2], p[1])
-    side_p2 = orient3d(q[0], q[1], q[2], p[2])
+    side_p0 = _side(q, p, i0)
+    side_p1 = _side(q, p, i1)
+    side_p2 = _side(q, p, i2)
     if side_p0 * side_p1 > 0 and side_p0 * side_p2 > 0:
         return False
-    i0, i1, i2 = np.int64(0), np.int64(1), np.int64(2)  # one compiled version, not one per literal
+    if side_q0 == 0 and side_q1 == 0 and side_q2 == 0 and side_p0 == 0 and side_p1 == 0 and side_p2 == 0:
+        # one plane holds both (or both have zero area): one 2-D test on a projection
+        # that is one-to-one on the plane of a triangle of non-zero area
+        x, y = _one_to_one_projection(q)
+        if x >= 0:
+            return _coplanar_triangles_meet(p, q, x, y)
+        x, y = _one_to_one_projection(p)
+        if x >= 0:
+            return _coplanar_triangles_meet(q, p, x, y)
     return (segment_meets_triangle(p, i0, i1, q, side_p0, side_p1)
             or segment_meets_triangle(p, i1, i2, q, side_p1, side_p2)
             or segment_meets_triangle(p, i2, i0, q, side_p2, side_p0)

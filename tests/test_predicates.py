@@ -34,6 +34,57 @@ def test_orient2d_matches_exact_signs():
         assert orient2d(*a, *b, *c) == orient2d_exact(*a, *b, *c)
 
 
+def test_points_in_an_axis_parallel_plane_are_coplanar_whatever_their_rounding():
+    """Points sharing one coordinate that is not a short binary fraction (0.1), with
+    differences that round on the other axes: the filter cannot decide and the
+    differences are not exact, yet the exact sign is 0 (and +-1 one ulp off the plane)."""
+    rng = np.random.default_rng(RNG_SEED + 5)
+    for k in range(600):
+        axis = k % 3
+        pts = rng.normal(size=(4, 3)) * 10.0 ** rng.integers(-3, 4)
+        pts[:, axis] = 0.1 * (1 + k % 7)
+        if k % 4 == 3:
+            pts[rng.integers(4), axis] = np.nextafter(pts[0, axis], np.inf)
+        assert orient3d(*pts) == orient3d_exact(*pts)
+        # the same in 2-D: three points on an axis-parallel line, or two that coincide
+        a, b, c = pts[:3, [axis, (axis + 1) % 3]]
+        if k % 5 == 4:
+            c = b.copy()
+        assert orient2d(*a, *b, *c) == orient2d_exact(*a, *b, *c)
+
+
+def coplanar_pair(rng, plane):
+    """Two random triangles (3, 3) exactly in one plane, small-integer grid coordinates
+    (so touching, collinear and zero-area cases are common): ``z``, z = 0.1 (the height
+    is not a short binary fraction, so coordinate differences round); ``tilted``,
+    z = x + y (exact in float64); ``vertical``, x + y = 3 (no triangle has area on (x, y))."""
+    uv = rng.integers(0, 4, (6, 2)).astype(float)
+    if rng.random() < 0.15:
+        uv[1] = uv[0]  # a zero-area triangle
+    if plane == "z":
+        pts = np.column_stack([uv / 3.0, np.full(6, 0.1)])
+    elif plane == "tilted":
+        pts = np.column_stack([uv, uv[:, 0] + uv[:, 1]])
+    else:
+        pts = np.column_stack([uv[:, 0], 3.0 - uv[:, 0], uv[:, 1]])
+    return np.ascontiguousarray(pts[:3]), np.ascontiguousarray(pts[3:])
+
+
+@pytest.mark.parametrize("plane", ["z", "tilted", "vertical"])
+def test_random_coplanar_pairs_match_exact_reference(plane):
+    """The coplanar 2-D test (one projection that is one-to-one on the plane) against
+    exact rational arithmetic, both argument orders."""
+    rng = np.random.default_rng(RNG_SEED + 6)
+    hits = 0
+    for _ in range(400):
+        p, q = coplanar_pair(rng, plane)
+        expected = triangles_intersect_exact(p, q)
+        hits += expected
+        assert triangles_intersect(p, q) == expected, (p, q)
+        assert triangles_intersect(q, p) == expected, (p, q)
+    assert 80 < hits < 320  # both outcomes well represented
+
+
 def tri(*rows):
     return np.array(rows, dtype=np.float64)
 

@@ -43,10 +43,10 @@ _ABS_R_EPS = 1e-12
 # --- boxes -------------------------------------------------------------------------------
 
 @njit(cache=True)
-def boxes_overlap(lo_a, hi_a, lo_b, hi_b):
-    """Closed boxes share a point."""
+def boxes_overlap(lo, hi, a, b):
+    """Closed boxes a and b of box arrays lo, hi (n, 3) share a point."""
     for i in range(3):
-        if lo_a[i] > hi_b[i] or lo_b[i] > hi_a[i]:
+        if lo[a, i] > hi[b, i] or lo[b, i] > hi[a, i]:
             return False
     return True
 
@@ -75,7 +75,7 @@ def sweep_and_prune(lo, hi):
             j = order[r]
             if lo[j, axis] > hi[i, axis]:
                 break
-            if boxes_overlap(lo[i], hi[i], lo[j], hi[j]):
+            if boxes_overlap(lo, hi, i, j):
                 if k == pairs.shape[0]:
                     pairs = grown_rows(pairs, k)
                 pairs[k, 0] = min(i, j)
@@ -109,59 +109,75 @@ def _widest_axis(lo):
 
 @njit(cache=True)
 def relative_pose(rp_a, rp_b):
-    """[R | t] (3, 4) mapping B's body frame into A's body frame."""
-    rel = np.empty((3, 4))
+    """[R | t] mapping B's body frame into A's body frame, from poses rp_a, rp_b (3, 4):
+    a 12-tuple, row by row (r00, r01, r02, t0, r10, ...). A tuple, not an array: it is
+    passed to the node-pair test of every step of a descent, and a tuple costs no
+    reference counting."""
+    r = np.empty((3, 4))
     for i in range(3):
         for j in range(3):
             s = 0.0
             for k in range(3):
                 s += rp_a[k, i] * rp_b[k, j]
-            rel[i, j] = s
+            r[i, j] = s
         s = 0.0
         for k in range(3):
             s += rp_a[k, i] * (rp_b[k, 3] - rp_a[k, 3])
-        rel[i, 3] = s
-    return rel
+        r[i, 3] = s
+    return (r[0, 0], r[0, 1], r[0, 2], r[0, 3], r[1, 0], r[1, 1], r[1, 2], r[1, 3],
+            r[2, 0], r[2, 1], r[2, 2], r[2, 3])
 
 
 @njit(cache=True)
 def abs_rotation(rel):
-    """|R| + a small epsilon (3, 3) of rel = [R | t], for oriented_boxes_overlap."""
-    return np.abs(rel[:, :3]) + _ABS_R_EPS
+    """|R| + a small epsilon of rel = [R | t] (relative_pose): a 9-tuple, row by row, for
+    oriented_boxes_overlap."""
+    e = _ABS_R_EPS
+    return (abs(rel[0]) + e, abs(rel[1]) + e, abs(rel[2]) + e, abs(rel[4]) + e, abs(rel[5]) + e,
+            abs(rel[6]) + e, abs(rel[8]) + e, abs(rel[9]) + e, abs(rel[10]) + e)
 
 
 @njit(cache=True)
-def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
-    """Box A (axis-aligned in A's frame) and box B (in B's frame, placed in A's
-    frame by rel = [R | t]) overlap by the separating-axis test (15 axes).
+def node_box(lo, hi, n):
+    """Box n of node arrays lo, hi (n, 3) as a 6-tuple (lo x, y, z, hi x, y, z)."""
+    return lo[n, 0], lo[n, 1], lo[n, 2], hi[n, 0], hi[n, 1], hi[n, 2]
 
-    abs_r (3, 3) = |R| + a small epsilon, computed once per descent.
+
+@njit(cache=True)
+def oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
+    """Boxes box_a (axis-aligned in A's frame) and box_b (in B's frame, placed in A's frame
+    by rel = [R | t]), 6-tuples (node_box), overlap by the separating-axis test (15
+    axes); margin (length units) widens the test.
+
+    rel: relative_pose 12-tuple; abs_r: |R| + a small epsilon (abs_rotation), computed
+    once per descent. Tuples and scalars only: this is the hottest test of a descent,
+    and array arguments would cost reference counting on every call.
     """
-    ea0 = 0.5 * (hi_a[0] - lo_a[0])
-    ea1 = 0.5 * (hi_a[1] - lo_a[1])
-    ea2 = 0.5 * (hi_a[2] - lo_a[2])
-    eb0 = 0.5 * (hi_b[0] - lo_b[0])
-    eb1 = 0.5 * (hi_b[1] - lo_b[1])
-    eb2 = 0.5 * (hi_b[2] - lo_b[2])
-    cb0 = 0.5 * (lo_b[0] + hi_b[0])
-    cb1 = 0.5 * (lo_b[1] + hi_b[1])
-    cb2 = 0.5 * (lo_b[2] + hi_b[2])
+    ea0 = 0.5 * (box_a[3] - box_a[0])
+    ea1 = 0.5 * (box_a[4] - box_a[1])
+    ea2 = 0.5 * (box_a[5] - box_a[2])
+    eb0 = 0.5 * (box_b[3] - box_b[0])
+    eb1 = 0.5 * (box_b[4] - box_b[1])
+    eb2 = 0.5 * (box_b[5] - box_b[2])
+    cb0 = 0.5 * (box_b[0] + box_b[3])
+    cb1 = 0.5 * (box_b[1] + box_b[4])
+    cb2 = 0.5 * (box_b[2] + box_b[5])
     # centre of B minus centre of A, in A's frame
-    t0 = rel[0, 3] + rel[0, 0] * cb0 + rel[0, 1] * cb1 + rel[0, 2] * cb2 - 0.5 * (lo_a[0] + hi_a[0])
-    t1 = rel[1, 3] + rel[1, 0] * cb0 + rel[1, 1] * cb1 + rel[1, 2] * cb2 - 0.5 * (lo_a[1] + hi_a[1])
-    t2 = rel[2, 3] + rel[2, 0] * cb0 + rel[2, 1] * cb1 + rel[2, 2] * cb2 - 0.5 * (lo_a[2] + hi_a[2])
+    t0 = rel[3] + rel[0] * cb0 + rel[1] * cb1 + rel[2] * cb2 - 0.5 * (box_a[0] + box_a[3])
+    t1 = rel[7] + rel[4] * cb0 + rel[5] * cb1 + rel[6] * cb2 - 0.5 * (box_a[1] + box_a[4])
+    t2 = rel[11] + rel[8] * cb0 + rel[9] * cb1 + rel[10] * cb2 - 0.5 * (box_a[2] + box_a[5])
     ea = (ea0, ea1, ea2)
     eb = (eb0, eb1, eb2)
     t = (t0, t1, t2)
     # axes of A
     for i in range(3):
-        rb = eb0 * abs_r[i, 0] + eb1 * abs_r[i, 1] + eb2 * abs_r[i, 2]
+        rb = eb0 * abs_r[3 * i] + eb1 * abs_r[3 * i + 1] + eb2 * abs_r[3 * i + 2]
         if abs(t[i]) > ea[i] + rb + margin:
             return False
     # axes of B
     for j in range(3):
-        ra = ea0 * abs_r[0, j] + ea1 * abs_r[1, j] + ea2 * abs_r[2, j]
-        tj = t0 * rel[0, j] + t1 * rel[1, j] + t2 * rel[2, j]
+        ra = ea0 * abs_r[j] + ea1 * abs_r[3 + j] + ea2 * abs_r[6 + j]
+        tj = t0 * rel[j] + t1 * rel[4 + j] + t2 * rel[8 + j]
         if abs(tj) > ra + eb[j] + margin:
             return False
     # cross products of A's axis i with B's axis j
@@ -171,9 +187,9 @@ def oriented_boxes_overlap(lo_a, hi_a, lo_b, hi_b, rel, abs_r, margin):
         for j in range(3):
             j1 = (j + 1) % 3
             j2 = (j + 2) % 3
-            ra = ea[i1] * abs_r[i2, j] + ea[i2] * abs_r[i1, j]
-            rb = eb[j1] * abs_r[i, j2] + eb[j2] * abs_r[i, j1]
-            d = t[i2] * rel[i1, j] - t[i1] * rel[i2, j]
+            ra = ea[i1] * abs_r[3 * i2 + j] + ea[i2] * abs_r[3 * i1 + j]
+            rb = eb[j1] * abs_r[3 * i + j2] + eb[j2] * abs_r[3 * i + j1]
+            d = t[i2] * rel[4 * i1 + j] - t[i1] * rel[4 * i2 + j]
             if abs(d) > ra + rb + margin:
                 return False
     return True
@@ -194,18 +210,19 @@ def _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
 
 
 @njit(cache=True)
-def _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
-    if rule == RULE_POSE:
-        return oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, abs_r, margin)
-    return _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin)
+def half_area(box):
+    """Half the surface area of a box 6-tuple (node_box)."""
+    dx = box[3] - box[0]
+    dy = box[4] - box[1]
+    dz = box[5] - box[2]
+    return dx * dy + dy * dz + dz * dx
 
 
 @njit(cache=True)
-def half_area(lo, hi):
-    dx = hi[0] - lo[0]
-    dy = hi[1] - lo[1]
-    dz = hi[2] - lo[2]
-    return dx * dy + dy * dz + dz * dx
+def opens_a(leaf_a, leaf_b, box_a, box_b):
+    """Which node of a pair to open: A when B is a leaf, or when both are inner nodes and
+    A's box (6-tuple) is the larger (by half area)."""
+    return leaf_b or (not leaf_a and half_area(box_a) >= half_area(box_b))
 
 
 @njit(cache=True)
@@ -231,7 +248,12 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
         na = stack[top, 0]
         nb = stack[top, 1]
         counts[COUNT_NODE_PAIRS] += 1
-        if not _node_pair_overlaps(rule, lo, hi, na, nb, pose, motion, rel, abs_r, margin):
+        box_a = node_box(lo, hi, na)
+        box_b = node_box(lo, hi, nb)
+        if rule == RULE_POSE:
+            if not oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
+                continue
+        elif not _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
             continue
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0
@@ -240,7 +262,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
             continue
         if top + 2 > stack.shape[0]:
             stack = grown_rows(stack, top)
-        _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top)
+        _open(first, na, nb, opens_a(leaf_a, leaf_b, box_a, box_b), stack, top)
         top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
@@ -258,11 +280,10 @@ def _append_pair(out, k, na, nb):
 
 
 @njit(cache=True)
-def _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top):
-    """Replace node pair (na, nb) by the pairs of its children in stack rows top and
-    top + 1 (room for both must exist): open the node that is not a leaf, or the larger
-    of two inner nodes. Returns whether na was opened."""
-    if leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb])):
+def _open(first, na, nb, open_a, stack, top):
+    """Replace node pair (na, nb) by the pairs of the children of na (open_a) or of nb
+    (opens_a) in stack rows top and top + 1 (room for both must exist). Returns open_a."""
+    if open_a:
         child = first[na]
         stack[top, 0] = child + 1
         stack[top, 1] = nb
@@ -344,7 +365,7 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
         if top + 2 > stack.shape[0]:
             stack = grown_rows(stack, top)
             held = grown_rows(held, top)
-        if _open(lo, hi, first, na, nb, leaf_a, leaf_b, stack, top):
+        if _open(first, na, nb, opens_a(leaf_a, leaf_b, node_box(lo, hi, na), node_box(lo, hi, nb)), stack, top):
             _hold(held, top, box_b, _HELD_B)
             _hold(held, top + 1, box_b, _HELD_B)
         else:

@@ -31,7 +31,8 @@ from .broad import (
     RULE_SWEPT,
     abs_rotation,
     grown_rows,
-    half_area,
+    node_box,
+    opens_a,
     oriented_boxes_overlap,
     overlapping_leaves,
     relative_pose,
@@ -334,7 +335,9 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
         if not _before(min_prim[na], min_prim[nb], best_a, best_b):
             continue
         counts[COUNT_NODE_PAIRS] += 1
-        if not oriented_boxes_overlap(lo[na], hi[na], lo[nb], hi[nb], rel, abs_r, margin):
+        box_a = node_box(lo, hi, na)
+        box_b = node_box(lo, hi, nb)
+        if not oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
             continue
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0
@@ -357,7 +360,7 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
         if top + 2 > stack.shape[0]:
             stack = grown_rows(stack, top)
         # open the node that is not a leaf, or the larger of two inner nodes (as overlapping_leaves)
-        open_a = leaf_b or (not leaf_a and half_area(lo[na], hi[na]) >= half_area(lo[nb], hi[nb]))
+        open_a = opens_a(leaf_a, leaf_b, box_a, box_b)
         c0 = first[na] if open_a else first[nb]
         small, large = (c0, c0 + 1) if min_prim[c0] <= min_prim[c0 + 1] else (c0 + 1, c0)
         # the child with the smaller ids is popped first

@@ -345,18 +345,39 @@ def sphere_deviation(m, centre):
 def box_deviation(m, lo, hi, rp0):
     """Deviation bound (length units) of any point of the body box [lo, hi] (3,) placed
     by pose rp0 (3, 4) at t = 0, plus the rounding margin; 0 for linear motion."""
+    return box_deviation_of(m, (lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]), pose_tuple(rp0))
+
+
+@njit(cache=True)
+def pose_tuple(rp):
+    """Pose [R | p] (3, 4) as a 12-tuple, row by row. Per-node helpers of a descent take
+    tuples: array views and array arguments would cost reference counting per node."""
+    return (rp[0, 0], rp[0, 1], rp[0, 2], rp[0, 3], rp[1, 0], rp[1, 1], rp[1, 2], rp[1, 3],
+            rp[2, 0], rp[2, 1], rp[2, 2], rp[2, 3])
+
+
+@njit(cache=True)
+def motion_tuple(m):
+    """Motion row m (MOTION_WIDTH,) as a tuple (see pose_tuple)."""
+    return (m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], m[11])
+
+
+@njit(cache=True)
+def box_deviation_of(m, box, rp0):
+    """box_deviation of a box 6-tuple (lo x, y, z, hi x, y, z) placed by pose rp0
+    (pose_tuple) at t = 0; m: a motion row or motion_tuple."""
     if m[M_THETA] == 0.0:
         return 0.0
     half = 0.0
     for i in range(3):
-        half += (0.5 * (hi[i] - lo[i])) ** 2
-    # the box's centre at t = 0, as scalars: this runs for every node pair of a descent
-    b0 = 0.5 * (lo[0] + hi[0])
-    b1 = 0.5 * (lo[1] + hi[1])
-    b2 = 0.5 * (lo[2] + hi[2])
-    c0 = rp0[0, 3] + rp0[0, 0] * b0 + rp0[0, 1] * b1 + rp0[0, 2] * b2
-    c1 = rp0[1, 3] + rp0[1, 0] * b0 + rp0[1, 1] * b1 + rp0[1, 2] * b2
-    c2 = rp0[2, 3] + rp0[2, 0] * b0 + rp0[2, 1] * b1 + rp0[2, 2] * b2
+        half += (0.5 * (box[3 + i] - box[i])) ** 2
+    # the box's centre at t = 0
+    b0 = 0.5 * (box[0] + box[3])
+    b1 = 0.5 * (box[1] + box[4])
+    b2 = 0.5 * (box[2] + box[5])
+    c0 = rp0[3] + rp0[0] * b0 + rp0[1] * b1 + rp0[2] * b2
+    c1 = rp0[7] + rp0[4] * b0 + rp0[5] * b1 + rp0[6] * b2
+    c2 = rp0[11] + rp0[8] * b0 + rp0[9] * b1 + rp0[10] * b2
     theta_rho = _theta_rho(m, c0, c1, c2) + m[M_THETA] * math.sqrt(half)
     return _bound(m, theta_rho) + m[M_ETA]
 
@@ -366,11 +387,17 @@ def box_deviation(m, lo, hi, rp0):
 @njit(cache=True)
 def world_interval(lo, hi, rp, i):
     """Range of world coordinate i over the body box [lo, hi] (3,) under rp = [R | p] (3, 4)."""
-    c = rp[i, 3]
+    return world_interval_of((lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]), pose_tuple(rp), i)
+
+
+@njit(cache=True)
+def world_interval_of(box, rp, i):
+    """world_interval of a box 6-tuple under a pose_tuple rp."""
+    c = rp[4 * i + 3]
     e = 0.0
     for j in range(3):
-        c += rp[i, j] * (0.5 * (lo[j] + hi[j]))
-        e += abs(rp[i, j]) * (0.5 * (hi[j] - lo[j]))
+        c += rp[4 * i + j] * (0.5 * (box[j] + box[3 + j]))
+        e += abs(rp[4 * i + j]) * (0.5 * (box[3 + j] - box[j]))
     return c - e, c + e
 
 
@@ -378,8 +405,14 @@ def world_interval(lo, hi, rp, i):
 def chord_interval(lo, hi, rp0, rp1, i):
     """World coordinate i's range of body box [lo, hi] at both poses rp0, rp1: it holds
     the box's chords (each point's straight path between the two poses)."""
-    lo0, hi0 = world_interval(lo, hi, rp0, i)
-    lo1, hi1 = world_interval(lo, hi, rp1, i)
+    return chord_interval_of((lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]), pose_tuple(rp0), pose_tuple(rp1), i)
+
+
+@njit(cache=True)
+def chord_interval_of(box, rp0, rp1, i):
+    """chord_interval of a box 6-tuple between pose_tuples rp0 and rp1."""
+    lo0, hi0 = world_interval_of(box, rp0, i)
+    lo1, hi1 = world_interval_of(box, rp1, i)
     return min(lo0, lo1), max(hi0, hi1)
 
 

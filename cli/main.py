@@ -704,12 +704,28 @@ def _install_handlers():
 
 def _restore_handlers(previous):
     """After the command: as the program, a late stop signal just ends the process
-    quietly; called from other code, the previous handlers come back."""
-    for signum, handler in previous["signals"].items():
-        signal.signal(signum, _stop_quietly if _AS_PROGRAM else handler)
+    quietly; called from other code, the previous handlers come back.
+
+    A stop signal that arrives while the handlers are being put back (the command has
+    ended, so it is a late one) is held until they all are, then handled as one
+    arriving just after: as the program by _stop_quietly, otherwise sent again to the
+    restored handler."""
+    late = None
+    pending = list(previous["signals"].items())
+    while pending:
+        try:
+            signum, handler = pending[0]
+            signal.signal(signum, _stop_quietly if _AS_PROGRAM else handler)  # idempotent: safe to repeat
+            pending.pop(0)
+        except Terminated as exc:
+            late = exc.signum
     if not _AS_PROGRAM:
         warnings.showwarning = previous["showwarning"]
         sys.unraisablehook = previous["unraisablehook"]
+    if late is not None:
+        if _AS_PROGRAM:
+            _stop_quietly(late, None)
+        signal.raise_signal(late)
 
 
 def _error(text):

@@ -279,6 +279,41 @@ def test_ctrl_c_while_starting_up_is_quiet(scanned, delay):
     assert stderr.strip() == "collide: interrupted"
 
 
+def test_a_stop_signal_while_the_handlers_are_restored_is_not_lost(monkeypatch):
+    """Ctrl-C that lands while main puts the signal handlers back (seen as a rare
+    traceback and exit 1 after a finished command): the restoring completes, and the
+    signal goes to the restored handler (as the program: collide: interrupted, 130)."""
+    import warnings
+
+    from collide_cli import main as cli_main
+
+    from collide.errors import Terminated
+    real_signal = signal.signal
+    installed, delivered = [], []
+
+    def signal_hit_once(signum, handler):
+        if not installed and not delivered and signum == signal.SIGINT and handler is not cli_main._terminate:
+            delivered.append("during")  # Python runs the pending handler inside signal.signal
+            raise Terminated(signal.SIGINT)
+        installed.append((signum, handler))
+        return real_signal(signum, handler)
+
+    def restored(signum, frame):
+        delivered.append(signum)
+
+    before = signal.getsignal(signal.SIGINT)
+    previous = {"signals": {signal.SIGINT: restored}, "showwarning": warnings.showwarning,
+                "unraisablehook": sys.unraisablehook}
+    monkeypatch.setattr(cli_main, "_AS_PROGRAM", False)
+    monkeypatch.setattr(signal, "signal", signal_hit_once)
+    try:
+        cli_main._restore_handlers(previous)
+    finally:
+        real_signal(signal.SIGINT, before)
+    assert installed == [(signal.SIGINT, restored)]
+    assert delivered == ["during", signal.SIGINT]
+
+
 def test_temporary_file_of_a_killed_run_is_removed_by_the_next(scanned, tmp_path):
     meshes, traj, _ = scanned
     out = tmp_path / "c.h5"

@@ -345,4 +345,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             time_row[T_END] = t_last
             ids, _ = append_row(ids, n_rows, id_row)
             times, n_rows = append_row(times, n_rows, time_row)
+        # frame k + 1 ends this step and starts the next: its world vertices move over
+        # (swapping the buffers and their stamps), so no frame is transformed twice
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair)
     return ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -83,10 +83,10 @@ def ensure_world(ps, rp, o, frame, static, stamp, world):
 
 @njit(cache=True)
 def _world_centre(c, rp):
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = rp[i, 3] + rp[i, 0] * c[0] + rp[i, 1] * c[1] + rp[i, 2] * c[2]
-    return out
+    """Body point c (3,) placed by pose rp (3, 4): a 3-tuple (no allocation per pair and step)."""
+    return (rp[0, 3] + rp[0, 0] * c[0] + rp[0, 1] * c[1] + rp[0, 2] * c[2],
+            rp[1, 3] + rp[1, 0] * c[0] + rp[1, 1] * c[1] + rp[1, 2] * c[2],
+            rp[2, 3] + rp[2, 0] * c[0] + rp[2, 1] * c[1] + rp[2, 2] * c[2])
 
 
 @njit(cache=True)
@@ -98,8 +98,9 @@ def spheres_may_meet(ps, rp0, rp1, motion, a, b, margin):
     ca1 = _world_centre(ps.centre[mesh_a], rp1[a])
     cb0 = _world_centre(ps.centre[mesh_b], rp0[b])
     cb1 = _world_centre(ps.centre[mesh_b], rp1[b])
-    s = ca0 - cb0
-    v = (ca1 - ca0) - (cb1 - cb0)
+    s = (ca0[0] - cb0[0], ca0[1] - cb0[1], ca0[2] - cb0[2])
+    v = ((ca1[0] - ca0[0]) - (cb1[0] - cb0[0]), (ca1[1] - ca0[1]) - (cb1[1] - cb0[1]),
+         (ca1[2] - ca0[2]) - (cb1[2] - cb0[2]))
     dev = sphere_deviation(motion[a], ca0) + sphere_deviation(motion[b], cb0)
     if dev > 0.0:
         dev += motion[a, M_ETA] + motion[b, M_ETA]

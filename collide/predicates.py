@@ -221,6 +221,12 @@ def orient3d(a, b, c, d):
 
 
 @njit(cache=True)
+def _differences(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
+    """The rows of [a-d; b-d; c-d] as a 9-tuple (rounded differences)."""
+    return ax - dx, ay - dy, az - dz, bx - dx, by - dy, bz - dz, cx - dx, cy - dy, cz - dz
+
+
+@njit(cache=True)
 def orient3d_xyz(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     """orient3d of the points (ax, ay, az), ..., (dx, dy, dz), given as 12 float64.
 
@@ -228,15 +234,7 @@ def orient3d_xyz(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     and scalar arguments cost no reference counting when it is not; the rare
     undecided case is a separate call (_orient3d_undecided).
     """
-    adx = ax - dx
-    ady = ay - dy
-    adz = az - dz
-    bdx = bx - dx
-    bdy = by - dy
-    bdz = bz - dz
-    cdx = cx - dx
-    cdy = cy - dy
-    cdz = cz - dz
+    adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz = _differences(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
     m1 = bdy * cdz
     m2 = bdz * cdy
     m3 = cdy * adz
@@ -263,15 +261,7 @@ def _orient3d_undecided(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
         # points lie in one axis-parallel plane (a floor at z = 0, faces of boxes that
         # are not turned), told by comparing coordinates, with no rounding
         return 0
-    adx = ax - dx
-    ady = ay - dy
-    adz = az - dz
-    bdx = bx - dx
-    bdy = by - dy
-    bdz = bz - dz
-    cdx = cx - dx
-    cdy = cy - dy
-    cdz = cz - dz
+    adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz = _differences(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
     if (_exact_difference(ax, dx, adx) and _exact_difference(ay, dy, ady) and _exact_difference(az, dz, adz)
             and _exact_difference(bx, dx, bdx) and _exact_difference(by, dy, bdy)
             and _exact_difference(bz, dz, bdz) and _exact_difference(cx, dx, cdx)

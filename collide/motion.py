@@ -334,6 +334,17 @@ def point_deviation(m, points):
 
 
 @njit(cache=True)
+def corners_deviation(m, corners):
+    """point_deviation of a triangle's three corners given as a 9-tuple, row by row."""
+    if m[M_THETA] == 0.0:
+        return 0.0
+    worst = 0.0
+    for i in range(3):
+        worst = max(worst, _theta_rho(m, corners[3 * i], corners[3 * i + 1], corners[3 * i + 2]))
+    return _bound(m, worst)
+
+
+@njit(cache=True)
 def sphere_deviation(m, centre):
     """Deviation bound of the path of a world point centre (3,) at t = 0 (no margin)."""
     if m[M_THETA] == 0.0:

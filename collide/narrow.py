@@ -14,7 +14,7 @@ import numpy as np
 from .broad import grown_rows, reorder_rows
 from .ccd import ccd_work
 from .jit import njit
-from .motion import M_ETA, point_deviation, triangle_pair_contact
+from .motion import M_ETA, corners_deviation, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
 from .rows import COUNT_TRIANGLE_PAIRS
 
@@ -26,6 +26,24 @@ def gather_triangle(world, world_base, faces, face, out):
         row = world_base + faces[face, r]
         for c in range(3):
             out[r, c] = world[row, c]
+
+
+@njit(cache=True)
+def gathered_corners(world, world_base, faces, face):
+    """The world corners of the triangle with global face row ``face`` as a 9-tuple, row
+    by row (gather_triangle without a buffer: per-pair helpers take tuples, since array
+    arguments and views cost reference counting on every call)."""
+    r0 = world_base + faces[face, 0]
+    r1 = world_base + faces[face, 1]
+    r2 = world_base + faces[face, 2]
+    return (world[r0, 0], world[r0, 1], world[r0, 2], world[r1, 0], world[r1, 1], world[r1, 2],
+            world[r2, 0], world[r2, 1], world[r2, 2])
+
+
+@njit(cache=True)
+def corners_of(t):
+    """Triangle t (3, 3) as a 9-tuple, row by row."""
+    return (t[0, 0], t[0, 1], t[0, 2], t[1, 0], t[1, 1], t[1, 2], t[2, 0], t[2, 1], t[2, 2])
 
 
 class Placed(NamedTuple):
@@ -134,6 +152,12 @@ def _clip_rising(f0, f1, t_lo, t_hi):
 
 @njit(cache=True)
 def _swept_window(p0, p1, q0, q1, margin):
+    """_swept_window_of for triangles given as (3, 3) arrays."""
+    return _swept_window_of(corners_of(p0), corners_of(p1), corners_of(q0), corners_of(q1), margin)
+
+
+@njit(cache=True)
+def _swept_window_of(p0, p1, q0, q1, margin):
     """(t_lo, t_hi) in [0, 1]: outside it the two moving triangles cannot come within
     margin (length units) of each other; t_lo > t_hi when they never do.
 
@@ -144,19 +168,20 @@ def _swept_window(p0, p1, q0, q1, margin):
     interval of t found from two linear functions. The axes: x, y, z (the corner boxes),
     then both triangles' normals at the step's start, which separate close, nearly
     parallel faces that boxes do not. The margin grows by a few ulps for rounding.
+    Triangles p0, p1 (p at the step's start and end), q0, q1: 9-tuples (corners_of).
     """
     t_lo = 0.0
     t_hi = 1.0
     largest = 0.0  # |coordinate| over all axes, for the normals' rounding margin
     for c in range(3):
-        p_lo0 = min(p0[0, c], p0[1, c], p0[2, c])
-        p_hi0 = max(p0[0, c], p0[1, c], p0[2, c])
-        p_lo1 = min(p1[0, c], p1[1, c], p1[2, c])
-        p_hi1 = max(p1[0, c], p1[1, c], p1[2, c])
-        q_lo0 = min(q0[0, c], q0[1, c], q0[2, c])
-        q_hi0 = max(q0[0, c], q0[1, c], q0[2, c])
-        q_lo1 = min(q1[0, c], q1[1, c], q1[2, c])
-        q_hi1 = max(q1[0, c], q1[1, c], q1[2, c])
+        p_lo0 = min(p0[c], p0[3 + c], p0[6 + c])
+        p_hi0 = max(p0[c], p0[3 + c], p0[6 + c])
+        p_lo1 = min(p1[c], p1[3 + c], p1[6 + c])
+        p_hi1 = max(p1[c], p1[3 + c], p1[6 + c])
+        q_lo0 = min(q0[c], q0[3 + c], q0[6 + c])
+        q_hi0 = max(q0[c], q0[3 + c], q0[6 + c])
+        q_lo1 = min(q1[c], q1[3 + c], q1[6 + c])
+        q_hi1 = max(q1[c], q1[3 + c], q1[6 + c])
         size = max(abs(p_lo0), abs(p_hi0), abs(p_lo1), abs(p_hi1), abs(q_lo0), abs(q_hi0), abs(q_lo1), abs(q_hi1))
         largest = max(largest, size)
         m = margin + _WINDOW_ULPS * size
@@ -172,17 +197,17 @@ def _swept_window(p0, p1, q0, q1, margin):
 
 @njit(cache=True)
 def _clip_along_normal(triangle, p0, p1, q0, q1, margin, size, t_lo, t_hi):
-    """_swept_window's test along the normal n of ``triangle`` (3, 3): [t_lo, t_hi]
+    """_swept_window_of's test along the normal n of ``triangle`` (a 9-tuple): [t_lo, t_hi]
     restricted to where the blended extents of p and q along n come within margin |n|;
     unchanged when the normal is zero or not finite (a degenerate or huge triangle).
     ``size``: the largest |coordinate| of the four corner sets, for the rounding of the
     dot products (at most a few ulps of |n|_1 size)."""
-    ux = triangle[1, 0] - triangle[0, 0]
-    uy = triangle[1, 1] - triangle[0, 1]
-    uz = triangle[1, 2] - triangle[0, 2]
-    vx = triangle[2, 0] - triangle[0, 0]
-    vy = triangle[2, 1] - triangle[0, 1]
-    vz = triangle[2, 2] - triangle[0, 2]
+    ux = triangle[3] - triangle[0]
+    uy = triangle[4] - triangle[1]
+    uz = triangle[5] - triangle[2]
+    vx = triangle[6] - triangle[0]
+    vy = triangle[7] - triangle[1]
+    vz = triangle[8] - triangle[2]
     nx = uy * vz - uz * vy
     ny = uz * vx - ux * vz
     nz = ux * vy - uy * vx
@@ -201,11 +226,11 @@ def _clip_along_normal(triangle, p0, p1, q0, q1, margin, size, t_lo, t_hi):
 
 @njit(cache=True)
 def _extent(corners, nx, ny, nz):
-    """(min, max) of n . corner over the three corners (3, 3)."""
+    """(min, max) of n . corner over the three corners (a 9-tuple)."""
     lo = np.inf
     hi = -np.inf
     for i in range(3):
-        d = nx * corners[i, 0] + ny * corners[i, 1] + nz * corners[i, 2]
+        d = nx * corners[3 * i] + ny * corners[3 * i + 1] + nz * corners[3 * i + 2]
         lo = min(lo, d)
         hi = max(hi, d)
     return lo, hi
@@ -218,10 +243,6 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
     dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
     moment of the step (_swept_window). Returns (out int64 (cap, 2), n, windows float64
     (n, 2)): rows sorted by (tri_a, tri_b), windows their (t_lo, t_hi)."""
-    p0 = np.empty((3, 3))
-    p1 = np.empty((3, 3))
-    q0 = np.empty((3, 3))
-    q1 = np.empty((3, 3))
     row = np.empty(2, np.int64)
     times = np.empty(2)
     windows = np.empty((16, 2))
@@ -232,16 +253,16 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
         lb = leaves[k, 1]
         for ia in range(first[la], first[la] + count[la]):
             tri_a = prim_ids[ia]
-            gather_triangle(world0, world_base_a, faces, face_base_a + tri_a, p0)
-            gather_triangle(world1, world_base_a, faces, face_base_a + tri_a, p1)
-            dev_p = point_deviation(motion_a, p0)
+            p0 = gathered_corners(world0, world_base_a, faces, face_base_a + tri_a)
+            p1 = gathered_corners(world1, world_base_a, faces, face_base_a + tri_a)
+            dev_p = corners_deviation(motion_a, p0)
             for ib in range(first[lb], first[lb] + count[lb]):
                 tri_b = prim_ids[ib]
-                gather_triangle(world0, world_base_b, faces, face_base_b + tri_b, q0)
-                gather_triangle(world1, world_base_b, faces, face_base_b + tri_b, q1)
-                dev = dev_p + point_deviation(motion_b, q0)
+                q0 = gathered_corners(world0, world_base_b, faces, face_base_b + tri_b)
+                q1 = gathered_corners(world1, world_base_b, faces, face_base_b + tri_b)
+                dev = dev_p + corners_deviation(motion_b, q0)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
-                times[0], times[1] = _swept_window(p0, p1, q0, q1, dist_tol + dev + eta)
+                times[0], times[1] = _swept_window_of(p0, p1, q0, q1, dist_tol + dev + eta)
                 if times[0] <= times[1]:
                     row[0] = tri_a
                     row[1] = tri_b

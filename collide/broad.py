@@ -244,39 +244,33 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     abs_r = abs_rotation(rel)
     k = np.int64(0)
     while top > 0 and k < max_out:
-        top -= 1
-        na = stack[top, 0]
-        nb = stack[top, 1]
-        counts[COUNT_NODE_PAIRS] += 1
-        box_a = node_box(lo, hi, na)
-        box_b = node_box(lo, hi, nb)
-        if rule == RULE_POSE:
-            if not oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
+        stack = with_room(stack, top, top + DESCENT_BATCH + 1)
+        out = with_room(out, k, k + DESCENT_BATCH)
+        for _ in range(DESCENT_BATCH):  # no buffer is rebound in here (see DESCENT_BATCH)
+            if top == 0 or k >= max_out:
+                break
+            top -= 1
+            na = stack[top, 0]
+            nb = stack[top, 1]
+            counts[COUNT_NODE_PAIRS] += 1
+            box_a = node_box(lo, hi, na)
+            box_b = node_box(lo, hi, nb)
+            if rule == RULE_POSE:
+                if not oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
+                    continue
+            elif not _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
                 continue
-        elif not _swept_boxes_overlap(lo, hi, na, nb, pose, motion, margin):
-            continue
-        leaf_a = count[na] > 0
-        leaf_b = count[nb] > 0
-        if leaf_a and leaf_b:
-            out, k = _append_pair(out, k, na, nb)
-            continue
-        if top + 2 > stack.shape[0]:
-            stack = grown_rows(stack, top)
-        _open(first, na, nb, opens_a(leaf_a, leaf_b, box_a, box_b), stack, top)
-        top += 2
+            leaf_a = count[na] > 0
+            leaf_b = count[nb] > 0
+            if leaf_a and leaf_b:
+                out[k, 0] = na
+                out[k, 1] = nb
+                k += 1
+                continue
+            _open(first, na, nb, opens_a(leaf_a, leaf_b, box_a, box_b), stack, top)
+            top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
-
-
-@njit(cache=True)
-def _append_pair(out, k, na, nb):
-    """Write leaf pair (na, nb) as row k of out (int64 (cap, 2), grown when full).
-    Returns (out, k + 1)."""
-    if k == out.shape[0]:
-        out = grown_rows(out, k)
-    out[k, 0] = na
-    out[k, 1] = nb
-    return out, k + 1
 
 
 @njit(cache=True)
@@ -348,35 +342,55 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
     m_a, m_b = motion_tuple(motion[0]), motion_tuple(motion[1])
     k = np.int64(0)
     while top > 0:
-        top -= 1
-        na = stack[top, 0]
-        nb = stack[top, 1]
-        counts[COUNT_NODE_PAIRS] += 1
-        side = held[top, _HELD_SIDE]
-        box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(node_box(lo, hi, na), rp_a0, rp_a1,
-                                                                             m_a, margin)
-        box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(node_box(lo, hi, nb), rp_b0, rp_b1,
-                                                                             m_b, margin)
-        if (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
-                or box_a[2] > box_b[5] or box_b[2] > box_a[5]):
-            continue
-        leaf_a = count[na] > 0
-        leaf_b = count[nb] > 0
-        if leaf_a and leaf_b:
-            out, k = _append_pair(out, k, na, nb)
-            continue
-        if top + 2 > stack.shape[0]:
-            stack = grown_rows(stack, top)
-            held = grown_rows(held, top)
-        if _open(first, na, nb, opens_a(leaf_a, leaf_b, node_box(lo, hi, na), node_box(lo, hi, nb)), stack, top):
-            _hold(held, top, box_b, _HELD_B)
-            _hold(held, top + 1, box_b, _HELD_B)
-        else:
-            _hold(held, top, box_a, _HELD_A)
-            _hold(held, top + 1, box_a, _HELD_A)
-        top += 2
+        stack = with_room(stack, top, top + DESCENT_BATCH + 1)
+        held = with_room(held, top, stack.shape[0])
+        out = with_room(out, k, k + DESCENT_BATCH)
+        for _ in range(DESCENT_BATCH):  # no buffer is rebound in here (see DESCENT_BATCH)
+            if top == 0:
+                break
+            top -= 1
+            na = stack[top, 0]
+            nb = stack[top, 1]
+            counts[COUNT_NODE_PAIRS] += 1
+            side = held[top, _HELD_SIDE]
+            box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(node_box(lo, hi, na), rp_a0,
+                                                                                 rp_a1, m_a, margin)
+            box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(node_box(lo, hi, nb), rp_b0,
+                                                                                 rp_b1, m_b, margin)
+            if (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
+                    or box_a[2] > box_b[5] or box_b[2] > box_a[5]):
+                continue
+            leaf_a = count[na] > 0
+            leaf_b = count[nb] > 0
+            if leaf_a and leaf_b:
+                out[k, 0] = na
+                out[k, 1] = nb
+                k += 1
+                continue
+            if _open(first, na, nb, opens_a(leaf_a, leaf_b, node_box(lo, hi, na), node_box(lo, hi, nb)), stack,
+                     top):
+                _hold(held, top, box_b, _HELD_B)
+                _hold(held, top + 1, box_b, _HELD_B)
+            else:
+                _hold(held, top, box_a, _HELD_A)
+                _hold(held, top + 1, box_a, _HELD_A)
+            top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
+
+
+#: node pairs a descent tests between checks of its buffers' room: each pops one pair, pushes
+#: at most two and appends at most one leaf pair, so room for a batch is made before it and
+#: no buffer is rebound inside (a rebound array costs reference counting at every step)
+DESCENT_BATCH = 64
+
+
+@njit(cache=True)
+def with_room(rows, n, need):
+    """rows (cap, w), grown (grown_rows, first n rows kept) until it has at least ``need`` rows."""
+    while rows.shape[0] < need:
+        rows = grown_rows(rows, n)
+    return rows
 
 
 @njit(cache=True)

@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .broad import grown_rows, reorder_rows
+from .broad import grown_rows, reorder_rows, with_room
 from .ccd import ccd_work
 from .jit import njit
 from .motion import M_ETA, corners_deviation, point_deviation, triangle_pair_contact
@@ -110,8 +110,8 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
     """
     p = np.empty((3, 3))
     q = np.empty((3, 3))
-    row = np.empty(2, np.int64)
-    for k in range(n_leaves):
+    out = with_room(out, n_out, n_out + triangle_pair_count(leaves, n_leaves, count))
+    for k in range(n_leaves):  # out has room for every pair: it is not rebound in here
         la = leaves[k, 0]
         lb = leaves[k, 1]
         for ia in range(first[la], first[la] + count[la]):
@@ -122,12 +122,22 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
                 placed_triangle(obj_b, tri_b, q)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
                 if triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
-                    row[0] = tri_a
-                    row[1] = tri_b
-                    out, n_out = append_row(out, n_out, row)
+                    out[n_out, 0] = tri_a
+                    out[n_out, 1] = tri_b
+                    n_out += 1
                     if first_only:
                         return out, n_out
     return out, n_out
+
+
+@njit(cache=True)
+def triangle_pair_count(leaves, n_leaves, count):
+    """Number of triangle pairs in the first n_leaves leaf pairs (room to make before a
+    loop appends some of them, so that it never rebinds its buffer)."""
+    total = 0
+    for k in range(n_leaves):
+        total += count[leaves[k, 0]] * count[leaves[k, 1]]
+    return total
 
 
 # --- continuous (swept) tests -------------------------------------------------------------
@@ -243,12 +253,12 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
     dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
     moment of the step (_swept_window). Returns (out int64 (cap, 2), n, windows float64
     (n, 2)): rows sorted by (tri_a, tri_b), windows their (t_lo, t_hi)."""
-    row = np.empty(2, np.int64)
-    times = np.empty(2)
-    windows = np.empty((16, 2))
     n = np.int64(0)
+    room = triangle_pair_count(leaves, n_leaves, count)
+    windows = np.empty((max(room, 1), 2))
+    out = with_room(out, n, room)
     eta = motion_a[M_ETA] + motion_b[M_ETA]
-    for k in range(n_leaves):
+    for k in range(n_leaves):  # out and windows have room for every pair: not rebound in here
         la = leaves[k, 0]
         lb = leaves[k, 1]
         for ia in range(first[la], first[la] + count[la]):
@@ -262,12 +272,13 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
                 q1 = gathered_corners(world1, world_base_b, faces, face_base_b + tri_b)
                 dev = dev_p + corners_deviation(motion_b, q0)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
-                times[0], times[1] = _swept_window_of(p0, p1, q0, q1, dist_tol + dev + eta)
-                if times[0] <= times[1]:
-                    row[0] = tri_a
-                    row[1] = tri_b
-                    windows, _ = append_row(windows, n, times)
-                    out, n = append_row(out, n, row)
+                t_lo, t_hi = _swept_window_of(p0, p1, q0, q1, dist_tol + dev + eta)
+                if t_lo <= t_hi:
+                    out[n, 0] = tri_a
+                    out[n, 1] = tri_b
+                    windows[n, 0] = t_lo
+                    windows[n, 1] = t_hi
+                    n += 1
     span = 0  # order by (tri_a, tri_b): keys tri_a * span + tri_b
     for r in range(n):
         span = max(span, out[r, 1] + 1)

@@ -373,6 +373,10 @@ def motion_tuple(m):
     return (m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], m[11])
 
 
+if MOTION_WIDTH != 12:
+    raise ImportError("motion.motion_tuple spells out a motion row's elements: update it with MOTION_WIDTH")
+
+
 @njit(cache=True)
 def box_deviation_of(m, box, rp0):
     """box_deviation of a box 6-tuple (lo x, y, z, hi x, y, z) placed by pose rp0

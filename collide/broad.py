@@ -263,14 +263,20 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
             leaf_a = count[na] > 0
             leaf_b = count[nb] > 0
             if leaf_a and leaf_b:
-                out[k, 0] = na
-                out[k, 1] = nb
-                k += 1
+                k = _put_pair(out, k, na, nb)
                 continue
             _open(first, na, nb, opens_a(leaf_a, leaf_b, box_a, box_b), stack, top)
             top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
+
+
+@njit(cache=True)
+def _put_pair(out, k, na, nb):
+    """Write leaf pair (na, nb) as row k of out (int64 (cap, 2), which has room). Returns k + 1."""
+    out[k, 0] = na
+    out[k, 1] = nb
+    return k + 1
 
 
 @njit(cache=True)
@@ -363,9 +369,7 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
             leaf_a = count[na] > 0
             leaf_b = count[nb] > 0
             if leaf_a and leaf_b:
-                out[k, 0] = na
-                out[k, 1] = nb
-                k += 1
+                k = _put_pair(out, k, na, nb)
                 continue
             if _open(first, na, nb, opens_a(leaf_a, leaf_b, node_box(lo, hi, na), node_box(lo, hi, nb)), stack,
                      top):

@@ -113,19 +113,30 @@ def relative_pose(rp_a, rp_b):
     a 12-tuple, row by row (r00, r01, r02, t0, r10, ...). A tuple, not an array: it is
     passed to the node-pair test of every step of a descent, and a tuple costs no
     reference counting."""
-    r = np.empty((3, 4))
-    for i in range(3):
-        for j in range(3):
-            s = 0.0
-            for k in range(3):
-                s += rp_a[k, i] * rp_b[k, j]
-            r[i, j] = s
-        s = 0.0
-        for k in range(3):
-            s += rp_a[k, i] * (rp_b[k, 3] - rp_a[k, 3])
-        r[i, 3] = s
-    return (r[0, 0], r[0, 1], r[0, 2], r[0, 3], r[1, 0], r[1, 1], r[1, 2], r[1, 3],
-            r[2, 0], r[2, 1], r[2, 2], r[2, 3])
+    return (_rotated(rp_a, rp_b, 0, 0), _rotated(rp_a, rp_b, 0, 1), _rotated(rp_a, rp_b, 0, 2),
+            _shifted(rp_a, rp_b, 0),
+            _rotated(rp_a, rp_b, 1, 0), _rotated(rp_a, rp_b, 1, 1), _rotated(rp_a, rp_b, 1, 2),
+            _shifted(rp_a, rp_b, 1),
+            _rotated(rp_a, rp_b, 2, 0), _rotated(rp_a, rp_b, 2, 1), _rotated(rp_a, rp_b, 2, 2),
+            _shifted(rp_a, rp_b, 2))
+
+
+@njit(cache=True)
+def _rotated(rp_a, rp_b, i, j):
+    """Entry (i, j) of R_a^T R_b."""
+    s = 0.0
+    for k in range(3):
+        s += rp_a[k, i] * rp_b[k, j]
+    return s
+
+
+@njit(cache=True)
+def _shifted(rp_a, rp_b, i):
+    """Entry i of R_a^T (p_b - p_a)."""
+    s = 0.0
+    for k in range(3):
+        s += rp_a[k, i] * (rp_b[k, 3] - rp_a[k, 3])
+    return s
 
 
 @njit(cache=True)

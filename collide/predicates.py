@@ -298,6 +298,13 @@ def _segments_intersect_2d(px, py, qx, qy, rx, ry, sx, sy):
     o2 = orient2d(px, py, qx, qy, sx, sy)
     o3 = orient2d(rx, ry, sx, sy, px, py)
     o4 = orient2d(rx, ry, sx, sy, qx, qy)
+    return _segments_meet(o1, o2, o3, o4, px, py, qx, qy, rx, ry, sx, sy)
+
+
+@njit(cache=True)
+def _segments_meet(o1, o2, o3, o4, px, py, qx, qy, rx, ry, sx, sy):
+    """Closed 2-D segments pq and rs share a point, given the exact sides o1, o2 of r, s
+    against line pq and o3, o4 of p, q against line rs."""
     if o1 == 0 and o2 == 0 and o3 == 0 and o4 == 0:
         # collinear: they meet iff their bounding boxes overlap on both axes
         return (max(px, qx) >= min(rx, sx) and max(rx, sx) >= min(px, qx)
@@ -451,15 +458,8 @@ def _coplanar_triangles_meet(p, q, x, y):
         i, j = e, (e + 1) % 3
         for f in range(3):
             k, m = f, (f + 1) % 3
-            o1, o2 = sides_p[3 * e + k], sides_p[3 * e + m]
-            o3, o4 = sides_q[3 * f + i], sides_q[3 * f + j]
-            if o1 == 0 and o2 == 0 and o3 == 0 and o4 == 0:
-                # collinear edges: they meet iff their bounding boxes overlap on both axes
-                if (max(p[i, x], p[j, x]) >= min(q[k, x], q[m, x]) and max(q[k, x], q[m, x]) >= min(p[i, x], p[j, x])
-                        and max(p[i, y], p[j, y]) >= min(q[k, y], q[m, y])
-                        and max(q[k, y], q[m, y]) >= min(p[i, y], p[j, y])):
-                    return True
-            elif o1 * o2 <= 0 and o3 * o4 <= 0:
+            if _segments_meet(sides_p[3 * e + k], sides_p[3 * e + m], sides_q[3 * f + i], sides_q[3 * f + j],
+                              p[i, x], p[i, y], p[j, x], p[j, y], q[k, x], q[k, y], q[m, x], q[m, y]):
                 return True
     return False
 

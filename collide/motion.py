@@ -69,10 +69,11 @@ import math
 import numpy as np
 
 from . import config
-from .ccd import triangle_pair_toi
+from .ccd import disjoint_pair_toi, triangle_pair_toi
 from .jit import njit
 from .predicates import triangles_intersect
 from .rows import COUNT_SPLITS
+from .windows import swept_window
 
 #: interpolation name -> code used by the kernels
 INTERPOLATIONS = {"screw": 1, "linear-vertex": 0}
@@ -95,6 +96,9 @@ MIN_SUBSTEP = 2.0 ** -40
 #: time tolerance (fraction of the sub-step) of the searches before the final one, whose
 #: answers only trim the sub-step: a coarse one ends the root finder's search early
 COARSE_TIME_TOL = 0.5
+#: a sub-step whose moving-box window (windows.swept_window) covers at most this fraction of
+#: it is replaced by that window (a quarter shorter at least: the search makes progress)
+SHRINK_WINDOW = 0.75
 #: a triangle-pair search splits at most this many sub-steps before giving its
 #: conservative answer (never reached in practice: each split cuts the bound by 4)
 MAX_SUBSTEPS = 4096
@@ -204,15 +208,21 @@ def motion_summary(poses, centres, radii, out):
 # --- positions --------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _rotate(m, x0, x1, x2, phi):
-    """Rot(omega, phi) applied to (x0, x1, x2), omega = m[M_AXIS:M_AXIS + 3] (Rodrigues)."""
+def _turn(phi):
+    """(cos phi, sin phi, 1 - cos phi) of a rotation by phi, the last as 2 sin^2(phi / 2)
+    (accurate for small angles): computed once for all the points a rotation moves."""
+    h = math.sin(0.5 * phi)
+    return math.cos(phi), math.sin(phi), 2.0 * h * h
+
+
+@njit(cache=True)
+def _rotate_by(m, x0, x1, x2, turn):
+    """Rot(omega, phi) applied to (x0, x1, x2), omega = m[M_AXIS:M_AXIS + 3] (Rodrigues),
+    turn = _turn(phi)."""
     w0 = m[M_AXIS]
     w1 = m[M_AXIS + 1]
     w2 = m[M_AXIS + 2]
-    c = math.cos(phi)
-    s = math.sin(phi)
-    h = math.sin(0.5 * phi)
-    one_minus_c = 2.0 * h * h
+    c, s, one_minus_c = turn
     dot = (w0 * x0 + w1 * x1 + w2 * x2) * one_minus_c
     return (x0 * c + (w1 * x2 - w2 * x1) * s + w0 * dot,
             x1 * c + (w2 * x0 - w0 * x2) * s + w1 * dot,
@@ -220,13 +230,21 @@ def _rotate(m, x0, x1, x2, phi):
 
 
 @njit(cache=True)
-def _screw_point(m, x0, x1, x2, t):
-    """S(t, x) of the module docstring for the world point (x0, x1, x2) at t = 0."""
+def _screw_at(m, t):
+    """What S(t, x) of the module docstring shares over all points x, for fraction t:
+    (turn by t theta, s(t), Rot(omega, (t - 1) theta / 2) w as 3 floats, t d)."""
     theta = m[M_THETA]
-    r0, r1, r2 = _rotate(m, x0, x1, x2, t * theta)
     s = math.sin(0.5 * t * theta) / math.sin(0.5 * theta)
-    u0, u1, u2 = _rotate(m, m[M_W], m[M_W + 1], m[M_W + 2], 0.5 * (t - 1.0) * theta)
-    d = t * m[M_D]
+    u0, u1, u2 = _rotate_by(m, m[M_W], m[M_W + 1], m[M_W + 2], _turn(0.5 * (t - 1.0) * theta))
+    return _turn(t * theta), s, u0, u1, u2, t * m[M_D]
+
+
+@njit(cache=True)
+def _screw_point(m, x0, x1, x2, at):
+    """S(t, x) of the module docstring for the world point (x0, x1, x2) at t = 0, with
+    at = _screw_at(m, t)."""
+    turn, s, u0, u1, u2, d = at
+    r0, r1, r2 = _rotate_by(m, x0, x1, x2, turn)
     return (r0 + s * u0 + d * m[M_AXIS], r1 + s * u1 + d * m[M_AXIS + 1],
             r2 + s * u2 + d * m[M_AXIS + 2])
 
@@ -234,18 +252,23 @@ def _screw_point(m, x0, x1, x2, t):
 @njit(cache=True)
 def points_at(m, x_t0, x_t1, t, out):
     """World positions out (n, 3) at fraction t of the step of points at x_t0 (t = 0)
-    and x_t1 (t = 1) (each (n, 3)), under the motion row m. Exact at t = 0 and 1."""
-    for i in range(x_t0.shape[0]):
-        if t == 0.0 or t == 1.0:
-            src = x_t0 if t == 0.0 else x_t1
+    and x_t1 (t = 1) (each (n, 3)), under the motion row m. Exact at t = 0 and 1.
+    The sines and cosines of the motion at t are computed once, not once per point."""
+    if t == 0.0 or t == 1.0:
+        src = x_t0 if t == 0.0 else x_t1
+        for i in range(x_t0.shape[0]):
             for c in range(3):
                 out[i, c] = src[i, c]
-        elif m[M_THETA] == 0.0:  # the chord
+    elif m[M_THETA] == 0.0:  # the chord
+        for i in range(x_t0.shape[0]):
             for c in range(3):
                 out[i, c] = x_t0[i, c] + t * (x_t1[i, c] - x_t0[i, c])
-        else:  # x(t) = S(t, x0) + t (x1 - S(1, x0))
-            a0, a1, a2 = _screw_point(m, x_t0[i, 0], x_t0[i, 1], x_t0[i, 2], t)
-            e0, e1, e2 = _screw_point(m, x_t0[i, 0], x_t0[i, 1], x_t0[i, 2], 1.0)
+    else:  # x(t) = S(t, x0) + t (x1 - S(1, x0))
+        at_t = _screw_at(m, t)
+        at_1 = _screw_at(m, 1.0)
+        for i in range(x_t0.shape[0]):
+            a0, a1, a2 = _screw_point(m, x_t0[i, 0], x_t0[i, 1], x_t0[i, 2], at_t)
+            e0, e1, e2 = _screw_point(m, x_t0[i, 0], x_t0[i, 1], x_t0[i, 2], at_1)
             out[i, 0] = a0 + t * (x_t1[i, 0] - e0)
             out[i, 1] = a1 + t * (x_t1[i, 1] - e1)
             out[i, 2] = a2 + t * (x_t1[i, 2] - e2)
@@ -269,14 +292,16 @@ def pose_at(m, rp0, rp1, t, out):
                 out[i, j] = rp0[i, j] + t * (rp1[i, j] - rp0[i, j])
         return
     # x(t) = Rot(t theta) x0 + c(t) + t (x1 - Rot(theta) x0 - c(1)), x0 = R0 b + p0, x1 = R1 b + p1
+    turn_t = _turn(t * m[M_THETA])
+    turn_1 = _turn(m[M_THETA])
     for j in range(3):  # columns of R(t): Rot(t theta) R0 + t (R1 - Rot(theta) R0)
-        a0, a1, a2 = _rotate(m, rp0[0, j], rp0[1, j], rp0[2, j], t * m[M_THETA])
-        e0, e1, e2 = _rotate(m, rp0[0, j], rp0[1, j], rp0[2, j], m[M_THETA])
+        a0, a1, a2 = _rotate_by(m, rp0[0, j], rp0[1, j], rp0[2, j], turn_t)
+        e0, e1, e2 = _rotate_by(m, rp0[0, j], rp0[1, j], rp0[2, j], turn_1)
         out[0, j] = a0 + t * (rp1[0, j] - e0)
         out[1, j] = a1 + t * (rp1[1, j] - e1)
         out[2, j] = a2 + t * (rp1[2, j] - e2)
-    a0, a1, a2 = _screw_point(m, rp0[0, 3], rp0[1, 3], rp0[2, 3], t)
-    e0, e1, e2 = _screw_point(m, rp0[0, 3], rp0[1, 3], rp0[2, 3], 1.0)
+    a0, a1, a2 = _screw_point(m, rp0[0, 3], rp0[1, 3], rp0[2, 3], _screw_at(m, t))
+    e0, e1, e2 = _screw_point(m, rp0[0, 3], rp0[1, 3], rp0[2, 3], _screw_at(m, 1.0))
     out[0, 3] = a0 + t * (rp1[0, 3] - e0)
     out[1, 3] = a1 + t * (rp1[1, 3] - e1)
     out[2, 3] = a2 + t * (rp1[2, 3] - e2)
@@ -472,21 +497,6 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
 
 
 @njit(cache=True)
-def _boxes_overlap(pa, pb, qa, qb, margin):
-    """The boxes of p's corners at both ends of a sub-step (pa, pb) and of q's (qa, qb),
-    widened by margin, overlap: a necessary condition for the chords to come within
-    margin (each corner's chord lies in that box)."""
-    for c in range(3):
-        p_lo = min(pa[0, c], pa[1, c], pa[2, c], pb[0, c], pb[1, c], pb[2, c])
-        p_hi = max(pa[0, c], pa[1, c], pa[2, c], pb[0, c], pb[1, c], pb[2, c])
-        q_lo = min(qa[0, c], qa[1, c], qa[2, c], qb[0, c], qb[1, c], qb[2, c])
-        q_hi = max(qa[0, c], qa[1, c], qa[2, c], qb[0, c], qb[1, c], qb[2, c])
-        if p_hi + margin < q_lo or q_hi + margin < p_lo:
-            return False
-    return True
-
-
-@njit(cache=True)
 def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts):
     """The sub-step refinement of the module docstring. Forwards: earliest contact up to
     limit; backwards: latest contact from limit on (the same search with time running
@@ -496,8 +506,10 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
     pb = np.empty((3, 3))
     qb = np.empty((3, 3))
     stack = np.empty((128, 2))  # sub-steps [a, b] still to search; the top one comes first in time
-    stack[0, 0] = 0.0
-    stack[0, 1] = 1.0
+    # only contacts from the limit on (backwards: up to it) are wanted: the search starts on
+    # that part of the step, whose shorter chords have the smaller deviation bound dev h^2
+    stack[0, 0] = min(max(limit, 0.0), 1.0) if backwards else 0.0
+    stack[0, 1] = 1.0 if backwards else min(max(limit, 0.0), 1.0)
     n = 1
     splits = 0
     while n > 0:
@@ -515,7 +527,16 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
             return b if backwards else a  # touching where the sub-step starts: no search needed
         sub_dev = dev * h * h
         tol = 0.5 * dist_tol + sub_dev + eta
-        if not _boxes_overlap(pa, pb, qa, qb, tol):
+        t_lo, t_hi = swept_window(pa, pb, qa, qb, tol)  # where the chords can come within tol
+        if t_lo > t_hi:
+            continue
+        if t_hi - t_lo <= SHRINK_WINDOW and h > MIN_SUBSTEP and splits < MAX_SUBSTEPS:
+            # only that part of the sub-step can hold a contact: search it alone, with its own
+            # smaller deviation bound (bounds rounded outward)
+            splits += 1
+            stack[n, 0] = a if t_lo <= 0.0 else min(max(np.nextafter(a + t_lo * h, -np.inf), a), b)
+            stack[n, 1] = b if t_hi >= 1.0 else max(min(np.nextafter(a + t_hi * h, np.inf), b), a)
+            n += 1
             continue
         final = sub_dev <= 0.25 * dist_tol or h <= MIN_SUBSTEP or splits >= MAX_SUBSTEPS or n + 2 > 128
         # only the final answer needs time_tol; before that any lower bound trims the sub-step
@@ -523,9 +544,9 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
         # the limit in units of the sub-step, rounded outward
         sub_limit = ((b - limit) if backwards else (limit - a)) / max(h, MIN_SUBSTEP) * (1.0 + 2.0 ** -50)
         if backwards:
-            tau = triangle_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, work, counts)
+            tau = disjoint_pair_toi(pb, pa, qb, qa, sub_time_tol, tol, sub_limit, work, counts)
         else:
-            tau = triangle_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, work, counts)
+            tau = disjoint_pair_toi(pa, pb, qa, qb, sub_time_tol, tol, sub_limit, work, counts)
         if tau == np.inf:
             continue
         # no contact in [a, t) (forwards) or (t, b] (backwards); t rounded outward

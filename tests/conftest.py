@@ -1,6 +1,7 @@
 """Shared helpers: writing small scenes and running the real CLI in a subprocess."""
 import contextlib
 import io
+import logging
 import os
 import subprocess
 import sys
@@ -108,12 +109,26 @@ def run_in_process(*args):
     argv = [str(a) for a in args]
     out, err = io.StringIO(), io.StringIO()
     code = 0
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), _logging_restored():
         try:
             main(argv)
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     return subprocess.CompletedProcess(["collide", *argv], code, out.getvalue(), err.getvalue())
+
+
+@contextlib.contextmanager
+def _logging_restored():
+    """Put the "collide" and root loggers back as they were: the command line sets up its
+    own handler and stops collide's records from reaching the root logger, which a later
+    test of the same process (pytest's caplog listens there) would otherwise miss."""
+    logger, root = logging.getLogger("collide"), logging.getLogger()
+    saved = (logger.handlers[:], logger.propagate, logger.level, root.handlers[:], root.level)
+    try:
+        yield
+    finally:
+        logger.handlers[:], logger.propagate, logger.level = saved[0], saved[1], saved[2]
+        root.handlers[:], root.level = saved[3], saved[4]
 
 
 def signal_when_scanning(proc, folder, signum, timeout=120):

@@ -186,11 +186,11 @@ def _triangle_distance(p, q):
 
 
 def test_moving_window_holds_every_moment_the_triangles_come_close():
-    """narrow._swept_window against sampling with python-fcl's triangle distance:
+    """windows.swept_window against sampling with python-fcl's triangle distance:
     wherever two linearly moving triangles come within the margin, t lies inside the
     window. Half the pairs are nearly parallel faces a small gap apart (where the
     normal axes, not the boxes, decide)."""
-    from collide.narrow import _swept_window
+    from collide.windows import swept_window
     rng = np.random.default_rng(11)
     samples = np.linspace(0.0, 1.0, 201)
     inside = empty = 0
@@ -207,7 +207,7 @@ def test_moving_window_holds_every_moment_the_triangles_come_close():
             p1 = p0 + rng.normal(size=3) * 2 + rng.normal(size=(3, 3)) * 0.3
             q1 = q0 + rng.normal(size=3) * 2
         margin = abs(rng.normal()) * 0.05
-        t_lo, t_hi = _swept_window(p0, p1, q0, q1, margin)
+        t_lo, t_hi = swept_window(p0, p1, q0, q1, margin)
         empty += t_lo > t_hi
         for t in samples:
             if _triangle_distance(p0 + t * (p1 - p0), q0 + t * (q1 - q0)) <= margin * (1 - 1e-9):
@@ -219,7 +219,7 @@ def test_moving_window_holds_every_moment_the_triangles_come_close():
 def test_normal_axes_separate_close_parallel_faces_that_boxes_do_not():
     """Two parallel triangles tilted to every coordinate axis, 0.1 apart and sliding
     along their plane: their boxes overlap all along, their normals keep them apart."""
-    from collide.narrow import _swept_window
+    from collide.windows import swept_window
     p0 = np.array([[0.0, 0.0, 0.0], [1.0, -1.0, 0.0], [1.0, 0.0, -1.0]])
     normal = np.cross(p0[1] - p0[0], p0[2] - p0[0])
     normal /= np.linalg.norm(normal)
@@ -229,9 +229,9 @@ def test_normal_axes_separate_close_parallel_faces_that_boxes_do_not():
     for t in np.linspace(0, 1, 11):
         p, q = p0 + t * (p1 - p0), q0 + t * (q1 - q0)
         assert (p.max(axis=0) >= q.min(axis=0)).all() and (q.max(axis=0) >= p.min(axis=0)).all()
-    t_lo, t_hi = _swept_window(p0, p1, q0, q1, 0.05)
+    t_lo, t_hi = swept_window(p0, p1, q0, q1, 0.05)
     assert t_lo > t_hi
-    t_lo, t_hi = _swept_window(p0, p1, q0, q1, 0.11)  # within the margin: the whole step
+    t_lo, t_hi = swept_window(p0, p1, q0, q1, 0.11)  # within the margin: the whole step
     assert (t_lo, t_hi) == (0.0, 1.0)
 
 

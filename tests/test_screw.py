@@ -121,6 +121,76 @@ def test_deviation_bound_holds_and_is_tight(angle):
             assert bound <= 1.1 * worst + 1e-12
 
 
+def _pair_contact(rows, corners, limit, backwards):
+    """motion.triangle_pair_contact of triangles p, q under motion rows (m_p, m_q), corners
+    (p0, p1, q0, q1) (3, 3) each, with the default tolerances."""
+    from collide.ccd import ccd_work
+    m_p, m_q = rows
+    p0, p1, q0, q1 = corners
+    work = ccd_work()
+    dev = motion.point_deviation(m_p, p0) + motion.point_deviation(m_q, q0)
+    eta = m_p[motion.M_ETA] + m_q[motion.M_ETA]
+    return motion.triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, config.TIME_TOL, 1e-9, limit,
+                                        backwards, work, work.counts)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_contact_search_with_a_limit_keeps_every_sampled_contact(seed):
+    """triangle_pair_contact searches only up to its limit (forwards) or from it on
+    (backwards), on that part of the step alone, and culls sub-steps by their moving
+    boxes and normals: against 401 samples of scipy's screw motion and the exact
+    predicate, a forward answer is never after the first sampled contact and is found
+    whenever one lies before the limit (backwards: never before the last, found whenever
+    one lies after the limit), and an answer is a moment where the triangles are within
+    a hair (python-fcl's distance)."""
+    fcl = pytest.importorskip("fcl")
+    rng = np.random.default_rng(100 + seed)
+    body = {"p": rng.uniform(-0.8, 0.8, (3, 3)), "q": rng.uniform(-0.8, 0.8, (3, 3))}
+    samples = np.linspace(0.0, 1.0, 401)
+    checked = 0
+    for _ in range(12):
+        ends = {}
+        for name in "pq":
+            start = transform(rot(rng.normal(size=3), rng.uniform(0, np.pi)), rng.uniform(-0.4, 0.4, 3))
+            ends[name] = (start, transform(rot(rng.normal(size=3), rng.uniform(0.05, 0.8)),
+                                           rng.uniform(-0.4, 0.4, 3)) @ start)
+        rows = tuple(motion_row(*ends[name]) for name in "pq")
+        corners = tuple(np.ascontiguousarray(apply(ends[name][i], body[name])) for name in "pq" for i in (0, 1))
+
+        twists = {name: np.real(scipy_linalg.logm(ends[name][1] @ np.linalg.inv(ends[name][0]))) for name in "pq"}
+
+        def at(t):  # screw_reference, with each motion's logarithm taken once
+            return tuple(apply(scipy_linalg.expm(t * twists[name]) @ ends[name][0], body[name]) for name in "pq")
+
+        touching = samples[[bool(triangles_intersect(*at(t))) for t in samples]]
+        for limit in (-np.inf, 0.25, 0.5, 0.75, np.inf):
+            first = _pair_contact(rows, corners, limit, False)
+            last = _pair_contact(rows, corners, limit, True)
+            if touching.size:
+                if touching[0] <= limit:
+                    assert first <= touching[0] + SLACK, (limit, first, touching[0])
+                if touching[-1] >= limit:
+                    assert last >= touching[-1] - SLACK, (limit, last, touching[-1])
+                assert first == np.inf or first <= touching[0] + SLACK
+                assert last == -np.inf or last >= touching[-1] - SLACK
+                checked += 1
+            for t in (first, last):
+                if np.isfinite(t):
+                    tri_p, tri_q = at(min(max(t, 0.0), 1.0))
+                    gap = fcl.distance(*(fcl.CollisionObject(_triangle_model(fcl, tri), fcl.Transform())
+                                         for tri in (tri_p, tri_q)), fcl.DistanceRequest(), fcl.DistanceResult())
+                    assert gap < 1e-6, (limit, t, gap)
+    assert checked > 0  # the triangles are placed to touch in some of the motions
+
+
+def _triangle_model(fcl, corners):
+    model = fcl.BVHModel()
+    model.beginModel(3, 1)
+    model.addSubModel(np.asarray(corners, float), np.array([[0, 1, 2]]))
+    model.endModel()
+    return model
+
+
 def test_half_turn_is_ambiguous():
     row = np.zeros(motion.MOTION_WIDTH)
     t0 = np.eye(4)

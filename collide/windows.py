@@ -1,0 +1,120 @@
+"""Moving-box windows: when, within a step (or sub-step), two moving triangles can be close.
+
+Used to cull triangle pairs before the certified CCD (narrow.py, over a whole step) and
+sub-steps of the screw refinement (motion.py). Triangles are 9-tuples of their corners,
+row by row (``corners_of``): tuples, not arrays, since array arguments and views cost
+reference counting on every call in numba.
+"""
+import numpy as np
+
+from .jit import njit
+
+
+@njit(cache=True)
+def corners_of(t):
+    """Triangle t (3, 3) as a 9-tuple, row by row."""
+    return (t[0, 0], t[0, 1], t[0, 2], t[1, 0], t[1, 1], t[1, 2], t[2, 0], t[2, 1], t[2, 2])
+
+
+#: relative rounding allowance of the moving-box windows (a few ulps of the coordinates)
+_WINDOW_ULPS = 8.0 * 2.0 ** -52
+
+
+@njit(cache=True)
+def clip_rising(f0, f1, t_lo, t_hi):
+    """Restrict [t_lo, t_hi] to where f(t) = f0 + t (f1 - f0) >= 0 (widened by 1e-12 in t
+    for the rounding of the root); empty (t_lo > t_hi) when f < 0 on all of [0, 1]."""
+    if f0 >= 0.0 and f1 >= 0.0:
+        return t_lo, t_hi
+    if f0 < 0.0 and f1 < 0.0:
+        return 1.0, 0.0
+    root = f0 / (f0 - f1)
+    if f0 < 0.0:
+        return max(t_lo, root - 1e-12), t_hi
+    return t_lo, min(t_hi, root + 1e-12)
+
+
+@njit(cache=True)
+def swept_window(p0, p1, q0, q1, margin):
+    """swept_window_of for triangles given as (3, 3) arrays."""
+    return swept_window_of(corners_of(p0), corners_of(p1), corners_of(q0), corners_of(q1), margin)
+
+
+@njit(cache=True)
+def swept_window_of(p0, p1, q0, q1, margin):
+    """(t_lo, t_hi) in [0, 1]: outside it the two moving triangles cannot come within
+    margin (length units) of each other; t_lo > t_hi when they never do.
+
+    Under linear vertex motion a triangle's extent along any axis n at fraction t of the
+    step lies inside the linear blend of its extents at both ends (the largest n.x over
+    the corners is convex in t); under screw motion within its deviation bound of it
+    (motion.py), which the caller adds to margin. Two such blended extents overlap on an
+    interval of t found from two linear functions. The axes: x, y, z (the corner boxes),
+    then both triangles' normals at the step's start, which separate close, nearly
+    parallel faces that boxes do not. The margin grows by a few ulps for rounding.
+    Triangles p0, p1 (p at the step's start and end), q0, q1: 9-tuples (corners_of).
+    """
+    t_lo = 0.0
+    t_hi = 1.0
+    largest = 0.0  # |coordinate| over all axes, for the normals' rounding margin
+    for c in range(3):
+        p_lo0 = min(p0[c], p0[3 + c], p0[6 + c])
+        p_hi0 = max(p0[c], p0[3 + c], p0[6 + c])
+        p_lo1 = min(p1[c], p1[3 + c], p1[6 + c])
+        p_hi1 = max(p1[c], p1[3 + c], p1[6 + c])
+        q_lo0 = min(q0[c], q0[3 + c], q0[6 + c])
+        q_hi0 = max(q0[c], q0[3 + c], q0[6 + c])
+        q_lo1 = min(q1[c], q1[3 + c], q1[6 + c])
+        q_hi1 = max(q1[c], q1[3 + c], q1[6 + c])
+        size = max(abs(p_lo0), abs(p_hi0), abs(p_lo1), abs(p_hi1), abs(q_lo0), abs(q_hi0), abs(q_lo1), abs(q_hi1))
+        largest = max(largest, size)
+        m = margin + _WINDOW_ULPS * size
+        t_lo, t_hi = clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)  # p's top above q's bottom
+        t_lo, t_hi = clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)  # q's top above p's bottom
+        if t_lo > t_hi:
+            return t_lo, t_hi
+    t_lo, t_hi = _clip_along_normal(p0, p0, p1, q0, q1, margin, largest, t_lo, t_hi)
+    if t_lo <= t_hi:
+        t_lo, t_hi = _clip_along_normal(q0, p0, p1, q0, q1, margin, largest, t_lo, t_hi)
+    return t_lo, t_hi
+
+
+@njit(cache=True)
+def _clip_along_normal(triangle, p0, p1, q0, q1, margin, size, t_lo, t_hi):
+    """_swept_window_of's test along the normal n of ``triangle`` (a 9-tuple): [t_lo, t_hi]
+    restricted to where the blended extents of p and q along n come within margin |n|;
+    unchanged when the normal is zero or not finite (a degenerate or huge triangle).
+    ``size``: the largest |coordinate| of the four corner sets, for the rounding of the
+    dot products (at most a few ulps of |n|_1 size)."""
+    ux = triangle[3] - triangle[0]
+    uy = triangle[4] - triangle[1]
+    uz = triangle[5] - triangle[2]
+    vx = triangle[6] - triangle[0]
+    vy = triangle[7] - triangle[1]
+    vz = triangle[8] - triangle[2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    length = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if not length > 0.0 or not np.isfinite(length):
+        return t_lo, t_hi
+    # rounding: a few ulps of |n|_1 size, and 1e-300 for products that underflow
+    m = margin * length * (1.0 + _WINDOW_ULPS) + _WINDOW_ULPS * size * (abs(nx) + abs(ny) + abs(nz)) + 1e-300
+    p_lo0, p_hi0 = _extent(p0, nx, ny, nz)
+    p_lo1, p_hi1 = _extent(p1, nx, ny, nz)
+    q_lo0, q_hi0 = _extent(q0, nx, ny, nz)
+    q_lo1, q_hi1 = _extent(q1, nx, ny, nz)
+    t_lo, t_hi = clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)
+    return clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)
+
+
+@njit(cache=True)
+def _extent(corners, nx, ny, nz):
+    """(min, max) of n . corner over the three corners (a 9-tuple)."""
+    lo = np.inf
+    hi = -np.inf
+    for i in range(3):
+        d = nx * corners[3 * i] + ny * corners[3 * i + 1] + nz * corners[3 * i + 2]
+        lo = min(lo, d)
+        hi = max(hi, d)
+    return lo, hi

@@ -62,6 +62,11 @@ final: never after the first contact, at most ``time_tol`` (of the step) before 
 at which the screw-moved triangles are within dist_tol + 2 eta + the CCD's rounding
 bound. Otherwise [tau, b] is halved and searched, earlier half first. Only sub-steps
 that still report something are refined, and each level cuts dev h^2 by at least 4.
+Before its search, a sub-step's chords are checked against their moving-box window
+(windows.swept_window: boxes and both triangles' normals, margin tol): a sub-step with
+no window holds no contact, and one whose window covers at most SHRINK_WINDOW of it is
+replaced by that part (shorter, so with a smaller dev h^2). A search with a limit (only
+contacts up to it are wanted) starts on [0, limit] rather than the whole step.
 The same search runs backwards in time for the last contact.
 """
 import math

@@ -61,27 +61,34 @@ class BVH(NamedTuple):
 
 @njit(cache=True)
 def _half_area(lo, hi):
-    dx = max(hi[0] - lo[0], 0.0)
-    dy = max(hi[1] - lo[1], 0.0)
-    dz = max(hi[2] - lo[2], 0.0)
+    return _half_area_of(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2])
+
+
+@njit(cache=True)
+def _half_area_of(x0, y0, z0, x1, y1, z1):
+    """Half the surface area of the box [x0, x1] x [y0, y1] x [z0, z1] (0 along an empty side)."""
+    dx = max(x1 - x0, 0.0)
+    dy = max(y1 - y0, 0.0)
+    dz = max(z1 - z0, 0.0)
     return dx * dy + dy * dz + dz * dx
 
 
 @njit(cache=True)
-def _range_bounds(ids, start, stop, box_lo, box_hi, centre):
-    """Box of the primitives ids[start:stop] and box of their centres."""
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    c_lo = np.full(3, np.inf)
-    c_hi = np.full(3, -np.inf)
+def _range_bounds(ids, start, stop, box_lo, box_hi, centre, out):
+    """Box of the primitives ids[start:stop] and box of their centres, into the rows of
+    out (4, 3): lo, hi, c_lo, c_hi (a buffer reused for every node: no allocation per node)."""
+    for a in range(3):
+        out[0, a] = np.inf
+        out[1, a] = -np.inf
+        out[2, a] = np.inf
+        out[3, a] = -np.inf
     for k in range(start, stop):
         p = ids[k]
         for a in range(3):
-            lo[a] = min(lo[a], box_lo[p, a])
-            hi[a] = max(hi[a], box_hi[p, a])
-            c_lo[a] = min(c_lo[a], centre[p, a])
-            c_hi[a] = max(c_hi[a], centre[p, a])
-    return lo, hi, c_lo, c_hi
+            out[0, a] = min(out[0, a], box_lo[p, a])
+            out[1, a] = max(out[1, a], box_hi[p, a])
+            out[2, a] = min(out[2, a], centre[p, a])
+            out[3, a] = max(out[3, a], centre[p, a])
 
 
 @njit(cache=True)
@@ -138,13 +145,29 @@ def _split_mean(ids, start, stop, centre, c_lo, c_hi):
     return mid
 
 
+class SahBins(NamedTuple):
+    """Scratch of the binned SAH builder, allocated once per build (n_bins bins)."""
+    lo: np.ndarray          #: float64 (n_bins, 3) box of each bin's primitives
+    hi: np.ndarray          #: float64 (n_bins, 3)
+    n: np.ndarray           #: int64 (n_bins,) primitives in each bin
+    right_area: np.ndarray  #: float64 (n_bins,) half area of bins b.. (suffix)
+    right_n: np.ndarray     #: int64 (n_bins,) primitives in bins b..
+
+
 @njit(cache=True)
-def _sah_best_plane(ids, start, stop, box_lo, box_hi, centre, c_lo, c_hi, n_bins):
+def _sah_bins(n_bins):
+    return SahBins(np.empty((n_bins, 3)), np.empty((n_bins, 3)), np.zeros(n_bins, np.int64), np.zeros(n_bins),
+                   np.zeros(n_bins, np.int64))
+
+
+@njit(cache=True)
+def _sah_best_plane(ids, start, stop, box_lo, box_hi, centre, c_lo, c_hi, bins):
     """Binned SAH: returns (cost, axis, position) of the cheapest split plane.
 
     cost = half_area(left) * n_left + half_area(right) * n_right (unnormalised);
-    inf when every centre falls in one bin on every axis.
+    inf when every centre falls in one bin on every axis. bins: SahBins scratch.
     """
+    n_bins = bins.n.shape[0]
     best_cost = np.inf
     best_axis = -1
     best_pos = 0.0
@@ -154,38 +177,36 @@ def _sah_best_plane(ids, start, stop, box_lo, box_hi, centre, c_lo, c_hi, n_bins
         if not scale < np.inf:
             continue  # one centre, or a subnormal extent (0 * inf would make a NaN bin)
         # 1. bin the centres, 2. accumulate each bin's box and count
-        bin_lo = np.full((n_bins, 3), np.inf)
-        bin_hi = np.full((n_bins, 3), -np.inf)
-        bin_n = np.zeros(n_bins, np.int64)
+        for b in range(n_bins):
+            bins.n[b] = 0
+            for a in range(3):
+                bins.lo[b, a] = np.inf
+                bins.hi[b, a] = -np.inf
         for k in range(start, stop):
             p = ids[k]
             b = min(int((centre[p, axis] - c_lo[axis]) * scale), n_bins - 1)
-            bin_n[b] += 1
+            bins.n[b] += 1
             for a in range(3):
-                bin_lo[b, a] = min(bin_lo[b, a], box_lo[p, a])
-                bin_hi[b, a] = max(bin_hi[b, a], box_hi[p, a])
+                bins.lo[b, a] = min(bins.lo[b, a], box_lo[p, a])
+                bins.hi[b, a] = max(bins.hi[b, a], box_hi[p, a])
         # 3. sweep from the right to get suffix areas, then from the left
-        right_area = np.zeros(n_bins)
-        right_n = np.zeros(n_bins, np.int64)
-        lo = np.full(3, np.inf)
-        hi = np.full(3, -np.inf)
+        x0, y0, z0, x1, y1, z1 = np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf
         n = 0
         for b in range(n_bins - 1, 0, -1):
-            lo = np.minimum(lo, bin_lo[b])
-            hi = np.maximum(hi, bin_hi[b])
-            n += bin_n[b]
-            right_area[b] = _half_area(lo, hi)
-            right_n[b] = n
-        lo = np.full(3, np.inf)
-        hi = np.full(3, -np.inf)
+            x0, y0, z0 = min(x0, bins.lo[b, 0]), min(y0, bins.lo[b, 1]), min(z0, bins.lo[b, 2])
+            x1, y1, z1 = max(x1, bins.hi[b, 0]), max(y1, bins.hi[b, 1]), max(z1, bins.hi[b, 2])
+            n += bins.n[b]
+            bins.right_area[b] = _half_area_of(x0, y0, z0, x1, y1, z1)
+            bins.right_n[b] = n
+        x0, y0, z0, x1, y1, z1 = np.inf, np.inf, np.inf, -np.inf, -np.inf, -np.inf
         n = 0
         for b in range(n_bins - 1):
-            lo = np.minimum(lo, bin_lo[b])
-            hi = np.maximum(hi, bin_hi[b])
-            n += bin_n[b]
-            if n == 0 or right_n[b + 1] == 0:
+            x0, y0, z0 = min(x0, bins.lo[b, 0]), min(y0, bins.lo[b, 1]), min(z0, bins.lo[b, 2])
+            x1, y1, z1 = max(x1, bins.hi[b, 0]), max(y1, bins.hi[b, 1]), max(z1, bins.hi[b, 2])
+            n += bins.n[b]
+            if n == 0 or bins.right_n[b + 1] == 0:
                 continue
-            cost = _half_area(lo, hi) * n + right_area[b + 1] * right_n[b + 1]
+            cost = _half_area_of(x0, y0, z0, x1, y1, z1) * n + bins.right_area[b + 1] * bins.right_n[b + 1]
             if cost < best_cost:
                 best_cost = cost
                 best_axis = axis
@@ -195,11 +216,11 @@ def _sah_best_plane(ids, start, stop, box_lo, box_hi, centre, c_lo, c_hi, n_bins
 
 @njit(cache=True)
 def _split_sah(ids, start, stop, box_lo, box_hi, centre, lo, hi, c_lo, c_hi,
-               leaf_size, n_bins, traversal_cost):
+               leaf_size, bins, traversal_cost):
     """Split index, or -1 to make a leaf (only allowed when count <= leaf_size)."""
     count = stop - start
     cost, axis, position = _sah_best_plane(ids, start, stop, box_lo, box_hi, centre,
-                                           c_lo, c_hi, n_bins)
+                                           c_lo, c_hi, bins)
     area = _half_area(lo, hi)
     if count <= leaf_size and (axis < 0 or area <= 0.0
                                or traversal_cost + cost / area >= count):
@@ -230,10 +251,13 @@ def _build(box_lo, box_hi, centre, rule, leaf_size, n_bins, traversal_cost):
     stack[0, 2] = n
     top = 1
     n_nodes = 1
+    bounds = np.empty((4, 3))  # of the node being split (_range_bounds)
+    bins = _sah_bins(n_bins)
     while top > 0:
         top -= 1
         node, start, stop = stack[top, 0], stack[top, 1], stack[top, 2]
-        lo, hi, c_lo, c_hi = _range_bounds(ids, start, stop, box_lo, box_hi, centre)
+        _range_bounds(ids, start, stop, box_lo, box_hi, centre, bounds)
+        lo, hi, c_lo, c_hi = bounds[0], bounds[1], bounds[2], bounds[3]
         for c in range(3):  # element by element, as _push
             node_lo[node, c] = lo[c]
             node_hi[node, c] = hi[c]
@@ -241,7 +265,7 @@ def _build(box_lo, box_hi, centre, rule, leaf_size, n_bins, traversal_cost):
         if stop - start > 1:
             if rule == 0:
                 mid = _split_sah(ids, start, stop, box_lo, box_hi, centre, lo, hi,
-                                 c_lo, c_hi, leaf_size, n_bins, traversal_cost)
+                                 c_lo, c_hi, leaf_size, bins, traversal_cost)
             elif stop - start > leaf_size:
                 if rule == 1:
                     mid = _split_median(ids, start, stop, centre, c_lo, c_hi)

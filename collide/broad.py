@@ -48,17 +48,6 @@ RULE_SWEPT = 1
 _ABS_R_EPS = 1e-12
 
 
-# --- boxes -------------------------------------------------------------------------------
-
-@njit(cache=True)
-def boxes_overlap(lo, hi, a, b):
-    """Closed boxes a and b of box arrays lo, hi (n, 3) share a point."""
-    for i in range(3):
-        if lo[a, i] > hi[b, i] or lo[b, i] > hi[a, i]:
-            return False
-    return True
-
-
 # --- level 1: object pairs ----------------------------------------------------------
 
 @njit(cache=True)
@@ -75,20 +64,26 @@ def sweep_and_prune(lo, hi):
     for i in range(n):
         starts[i] = lo[i, axis]
     order = np.argsort(starts, kind="mergesort")
+    # the boxes in sweep order, the sweep axis first: the inner loop reads memory in order
+    box = np.empty((n, 6))
+    for s in range(n):
+        for c in range(3):
+            box[s, c] = lo[order[s], (axis + c) % 3]
+            box[s, 3 + c] = hi[order[s], (axis + c) % 3]
     pairs = np.empty((max(n, 4), 2), np.int64)
     k = 0
     for s in range(n):
-        i = order[s]
         for r in range(s + 1, n):
-            j = order[r]
-            if lo[j, axis] > hi[i, axis]:
+            if box[r, 0] > box[s, 3]:
                 break
-            if boxes_overlap(lo, hi, i, j):
-                if k == pairs.shape[0]:
-                    pairs = grown_rows(pairs, k)
-                pairs[k, 0] = min(i, j)
-                pairs[k, 1] = max(i, j)
-                k += 1
+            if box[s, 0] > box[r, 3] or box[r, 1] > box[s, 4] or box[s, 1] > box[r, 4] \
+                    or box[r, 2] > box[s, 5] or box[s, 2] > box[r, 5]:
+                continue
+            if k == pairs.shape[0]:
+                pairs = grown_rows(pairs, k)
+            pairs[k, 0] = min(order[s], order[r])
+            pairs[k, 1] = max(order[s], order[r])
+            k += 1
     keys = np.empty(k, np.int64)  # sort by (a, b)
     for r in range(k):
         keys[r] = pairs[r, 0] * n + pairs[r, 1]

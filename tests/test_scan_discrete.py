@@ -218,3 +218,25 @@ def collide_rotation(q):
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sweep_and_prune_finds_exactly_the_overlapping_boxes(seed):
+    """broad.sweep_and_prune (object pairs whose world boxes overlap, the first cull of
+    every frame and step) against all N^2 pairs tested directly: closed boxes, so boxes
+    that only touch count; equal coordinates, boxes of zero size and many boxes stacked
+    along one axis included."""
+    from collide.broad import sweep_and_prune
+    rng = np.random.default_rng(seed)
+    n = [1, 2, 60, 400][seed]
+    lo = np.round(rng.uniform(0, 10, (n, 3)), 1)  # coarse grid: many equal coordinates
+    hi = lo + np.round(rng.choice([0.0, 0.3, 2.0], (n, 3)), 1)
+    if seed == 3:
+        lo[:, 0] = 0.0  # stacked along x: the sweep axis is another one
+        hi[:, 0] = 1.0
+    expected = [(a, b) for a in range(n) for b in range(a + 1, n)
+                if (lo[a] <= hi[b]).all() and (lo[b] <= hi[a]).all()]
+    found = sweep_and_prune(np.ascontiguousarray(lo), np.ascontiguousarray(hi))
+    assert [tuple(row) for row in found.tolist()] == expected
+    if n > 2:
+        assert expected  # the scene has overlaps to find

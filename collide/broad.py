@@ -29,15 +29,7 @@ never drops a pair the exact narrow phase would report.
 import numpy as np
 
 from .jit import njit
-from .motion import (
-    box_deviation,
-    box_deviation_of,
-    chord_interval,
-    chord_interval_of,
-    motion_tuple,
-    pose_tuple,
-    world_interval_of,
-)
+from .motion import box_deviation, box_deviation_of, chord_interval, chord_interval_of, motion_tuple, pose_tuple
 from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
 
 RULE_POSE = 0
@@ -323,22 +315,16 @@ _HELD_B = 2.0
 
 
 @njit(cache=True)
-def _swept_node_box(box, rp0, rp1, still, m, margin):
+def _swept_node_box(box, rp0, rp1, m, margin):
     """World box (lo x, y, z, hi x, y, z) holding a node's box (node_box 6-tuple) over the
     step: its chord box (motion.chord_interval_of between pose tuples rp0 and rp1)
     widened by margin and by its deviation bound under motion tuple m
-    (motion.box_deviation_of); the boxes of _swept_boxes_overlap. still: rp0 == rp1
-    (the same floats: then one pose gives the same box). Tuples only (no reference
-    counting per node)."""
+    (motion.box_deviation_of); the boxes of _swept_boxes_overlap. Tuples only (no
+    reference counting per node)."""
     d = margin + box_deviation_of(m, box, rp0)
-    if still:  # the same pose at both ends: the chord box is the box at that pose
-        x0, x1 = world_interval_of(box, rp0, 0)
-        y0, y1 = world_interval_of(box, rp0, 1)
-        z0, z1 = world_interval_of(box, rp0, 2)
-    else:
-        x0, x1 = chord_interval_of(box, rp0, rp1, 0)
-        y0, y1 = chord_interval_of(box, rp0, rp1, 1)
-        z0, z1 = chord_interval_of(box, rp0, rp1, 2)
+    x0, x1 = chord_interval_of(box, rp0, rp1, 0)
+    y0, y1 = chord_interval_of(box, rp0, rp1, 1)
+    z0, z1 = chord_interval_of(box, rp0, rp1, 2)
     return x0 - d, y0 - d, z0 - d, x1 + d, y1 + d, z1 + d
 
 
@@ -366,7 +352,6 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
         held[row, _HELD_SIDE] = _HELD_NONE
     rp_a0, rp_a1, rp_b0, rp_b1 = pose_tuple(pose[0]), pose_tuple(pose[1]), pose_tuple(pose[2]), pose_tuple(pose[3])
     m_a, m_b = motion_tuple(motion[0]), motion_tuple(motion[1])
-    still_a, still_b = rp_a0 == rp_a1, rp_b0 == rp_b1
     k = np.int64(0)
     while top > 0:
         stack = with_room(stack, top, top + DESCENT_BATCH + 1)
@@ -381,9 +366,9 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
             counts[COUNT_NODE_PAIRS] += 1
             side = held[top, _HELD_SIDE]
             box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(node_box(lo, hi, na), rp_a0,
-                                                                                 rp_a1, still_a, m_a, margin)
+                                                                                 rp_a1, m_a, margin)
             box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(node_box(lo, hi, nb), rp_b0,
-                                                                                 rp_b1, still_b, m_b, margin)
+                                                                                 rp_b1, m_b, margin)
             if (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
                     or box_a[2] > box_b[5] or box_b[2] > box_a[5]):
                 continue

@@ -138,28 +138,6 @@ def triangle_pair_count(leaves, n_leaves, count):
 # --- continuous (swept) tests -------------------------------------------------------------
 
 @njit(cache=True)
-def _gather_moving(world0, world1, world_base, faces, face, motion, rows, j):
-    """Row j of rows (n, 19): the corners of the triangle with global face row ``face`` at
-    the step's start (columns 0-8) and end (9-17), and their deviation bound under motion
-    row ``motion`` (18)."""
-    c0 = gathered_corners(world0, world_base, faces, face)
-    c1 = gathered_corners(world1, world_base, faces, face)
-    for i in range(9):
-        rows[j, i] = c0[i]
-        rows[j, 9 + i] = c1[i]
-    rows[j, 18] = corners_deviation(motion, c0)
-
-
-@njit(cache=True)
-def _moving_corners(rows, j):
-    """The corners at both ends (two 9-tuples) held in row j of rows (_gather_moving)."""
-    return ((rows[j, 0], rows[j, 1], rows[j, 2], rows[j, 3], rows[j, 4], rows[j, 5], rows[j, 6], rows[j, 7],
-             rows[j, 8]),
-            (rows[j, 9], rows[j, 10], rows[j, 11], rows[j, 12], rows[j, 13], rows[j, 14], rows[j, 15], rows[j, 16],
-             rows[j, 17]))
-
-
-@njit(cache=True)
 def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
                       world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
     """Triangle pairs (tri_a, tri_b) of the leaf pairs whose moving boxes, widened by
@@ -171,31 +149,24 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
     windows = np.empty((max(room, 1), 2))
     out = with_room(out, n, room)
     eta = motion_a[M_ETA] + motion_b[M_ETA]
-    widest = 1
-    for k in range(n_leaves):
-        widest = max(widest, count[leaves[k, 1]])
-    # B's triangles of the current leaf pair, gathered once for all of A's: corners at both
-    # ends (columns 0-8, 9-17) and deviation bound (column 18)
-    tri_b_rows = np.empty((widest, 19))
-    for k in range(n_leaves):  # out, windows and tri_b_rows have room: not rebound in here
+    for k in range(n_leaves):  # out and windows have room for every pair: not rebound in here
         la = leaves[k, 0]
         lb = leaves[k, 1]
-        for j in range(count[lb]):
-            _gather_moving(world0, world1, world_base_b, faces, face_base_b + prim_ids[first[lb] + j], motion_b,
-                           tri_b_rows, j)
         for ia in range(first[la], first[la] + count[la]):
             tri_a = prim_ids[ia]
             p0 = gathered_corners(world0, world_base_a, faces, face_base_a + tri_a)
             p1 = gathered_corners(world1, world_base_a, faces, face_base_a + tri_a)
             dev_p = corners_deviation(motion_a, p0)
-            for j in range(count[lb]):
-                q0, q1 = _moving_corners(tri_b_rows, j)
-                dev = dev_p + tri_b_rows[j, 18]
+            for ib in range(first[lb], first[lb] + count[lb]):
+                tri_b = prim_ids[ib]
+                q0 = gathered_corners(world0, world_base_b, faces, face_base_b + tri_b)
+                q1 = gathered_corners(world1, world_base_b, faces, face_base_b + tri_b)
+                dev = dev_p + corners_deviation(motion_b, q0)
                 counts[COUNT_TRIANGLE_PAIRS] += 1
                 t_lo, t_hi = swept_window_of(p0, p1, q0, q1, dist_tol + dev + eta)
                 if t_lo <= t_hi:
                     out[n, 0] = tri_a
-                    out[n, 1] = prim_ids[first[lb] + j]
+                    out[n, 1] = tri_b
                     windows[n, 0] = t_lo
                     windows[n, 1] = t_hi
                     n += 1

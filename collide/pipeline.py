@@ -254,12 +254,7 @@ def _run_discrete(ps, poses, n_frames, offset, static, filters, pair_sink, worke
     objects are tested once and repeated for every frame.
     """
     collect = pair_sink is not None
-    static_hits = static_pairs = None
-    counts = []
-    if static.sum() >= 2:
-        static_hits, static_pairs, static_counts = scan_frames(
-            ps, poses, static, filters.kernel_filter(only_within=static), 0, 1, collect, not collect)
-        counts.append(static_counts)
+    static_hits, static_pairs, counts = _static_hits(ps, poses, static, filters, collect)
     hits = []
     for (start, stop), (chunk_hits, chunk_pairs, chunk_counts) in _chunk_results(
             scan_frames, (ps, poses, static, filters.kernel_filter(extra_ignore=static)), (collect, not collect),
@@ -276,35 +271,92 @@ def _run_discrete(ps, poses, n_frames, offset, static, filters, pair_sink, worke
     return hits, _total_counts(counts)
 
 
+def _static_hits(ps, poses, static, filters, collect):
+    """The frame test of the pairs of static objects, at the first frame only (they never
+    move): (hits, triangle pairs if collect, [work counts]), (None, None, []) when fewer
+    than two objects are static."""
+    if static.sum() < 2:
+        return None, None, []
+    hits, pairs, counts = scan_frames(ps, poses, static, filters.kernel_filter(only_within=static), 0, 1, collect,
+                                      not collect)
+    return hits, pairs, [counts]
+
+
 def _scan_blocks(ps, poses, static, filters, pair_sink, continuous, interpolation, time_tol, dist_tol, workers,
                  progress, scheduler=None):
     """The frame tests and, when ``continuous``, the swept tests of every frame and motion
     step, a block of poses (PoseSource) at a time: each block also holds the next one's
-    first frame, for the step in between. Returns (hits (H, HIT_WIDTH), swept ids (R,
-    SWEPT_WIDTH), swept fractions (R, TIMES_WIDTH), work counts), frames and steps
-    numbered from the first selected frame."""
+    first frame, for the step in between. Without a pair_sink, continuous scans run
+    the frame tests inside the swept kernel (_run_steps). Returns (hits (H,
+    HIT_WIDTH), swept ids (R, SWEPT_WIDTH), swept fractions (R, TIMES_WIDTH), work
+    counts), frames and steps numbered from the first selected frame. progress:
+    callback(done, total) (_Progress; the steps count the frame tests they run)."""
+    together = continuous and pair_sink is None
+    n = poses.n_frames
+    progress = _Progress(0 if together else n, max(n - 1, 0) if continuous else 0, progress)
     hits, ids, fractions, counts = [], [], [], []
     for offset, block in poses.blocks(overlap=1 if continuous else 0):
         own = min(poses.block, block.shape[0])  # frames of this block; the rest is the next one's first
-        block_hits, block_counts = _run_discrete(ps, block, own, offset, static, filters, pair_sink, workers,
-                                                 progress.frames, scheduler)
-        hits.append(block_hits)
-        counts.append(block_counts)
-        if continuous and block.shape[0] > 1:
+        if together and block.shape[0] > 1:
+            block_hits, block_ids, block_fractions, block_counts = _run_steps(
+                ps, block, own, static, filters, interpolation, time_tol, dist_tol, workers, progress.steps,
+                scheduler)
+            hits.append(block_hits + _frame_shift(offset))
+            counts.append(block_counts)
+        else:
+            block_hits, block_counts = _run_discrete(ps, block, own, offset, static, filters, pair_sink, workers,
+                                                     None if together else progress.frames, scheduler)
+            hits.append(block_hits)
+            counts.append(block_counts)
+            if not continuous or block.shape[0] == 1:
+                continue
             known = block_hits
             if block.shape[0] > own:  # what touches at the next block's first frame: only whether it does
                 next_hits, _, _ = scan_frames(ps, block, static, filters.kernel_filter(extra_ignore=static), own,
                                               own + 1, False, True)
                 known = np.concatenate([block_hits, next_hits.reshape(-1, HIT_WIDTH) + _frame_shift(offset)])
-            block_ids, block_fractions, swept_counts = _run_swept(
+            block_ids, block_fractions, block_counts = _run_swept(
                 ps, block, static, filters, known - _frame_shift(offset), interpolation, time_tol, dist_tol,
                 workers, progress.steps, scheduler)
-            block_ids[:, SWEPT_STEP] += offset
-            ids.append(block_ids)
-            fractions.append(block_fractions)
-            counts.append(swept_counts)
+            counts.append(block_counts)
+        block_ids[:, SWEPT_STEP] += offset
+        ids.append(block_ids)
+        fractions.append(block_fractions)
     return (np.concatenate(hits), np.concatenate(ids or [np.zeros((0, SWEPT_WIDTH), np.int64)]),
             np.concatenate(fractions or [np.zeros((0, TIMES_WIDTH))]), _total_counts(counts))
+
+
+def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, dist_tol, workers, progress,
+               scheduler=None):
+    """Frame hits of frames [0, n_frames) of a block of poses (T, N, 3, 4) and the swept
+    contacts of its T - 1 steps, the frame tests run by the swept kernel (each chunk
+    of steps tests its first frame, then each step's last frame with the step):
+    (hits (H, HIT_WIDTH), ids (R, SWEPT_WIDTH), fractions (R, TIMES_WIDTH), counts),
+    numbered from the block's first frame."""
+    static_hits, _, counts = _static_hits(ps, poses, static, filters, False)
+    results = _run_chunks(_scan_steps, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
+                          (n_frames, INTERPOLATIONS[interpolation], time_tol, dist_tol), poses.shape[0] - 1, workers,
+                          progress, scheduler)
+    hits = [r[0] for r in results]
+    if static_hits is not None:
+        hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
+    return (np.concatenate(hits).reshape(-1, HIT_WIDTH), np.concatenate([r[1] for r in results]).reshape(
+        -1, SWEPT_WIDTH), np.concatenate([r[2] for r in results]).reshape(-1, TIMES_WIDTH),
+        _total_counts(counts + [r[3] for r in results]))
+
+
+def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, time_tol, dist_tol):
+    """The chunk of _run_steps for steps [start, stop): the frame test of frame start,
+    then scan_intervals finding the other frames' contacts itself. Returns (hits of
+    frames (start if start == 0, else start + 1) to min(stop, n_frames - 1), ids,
+    fractions, counts)."""
+    first, _, first_counts = scan_frames(ps, poses, static, pairs, start, start + 1, False, True)
+    touching, tris = frame_contacts(first, static, poses.shape[1])
+    hits, ids, fractions, counts = scan_intervals(ps, poses, static, pairs, touching, tris, start, stop, True,
+                                                  interpolation, time_tol, dist_tol)
+    if start == 0:
+        hits = np.concatenate([first, hits])
+    return hits[hits[:, HIT_FRAME] < n_frames], ids, fractions, first_counts + counts
 
 
 def _frame_shift(offset):
@@ -359,10 +411,10 @@ def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_t
     touching, touching_tris = frame_contacts(hits, static, poses.shape[1])
     results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static), touching,
                                            touching_tris),
-                          (INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
+                          (False, INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
                           scheduler)
-    return (np.concatenate([r[0] for r in results]).reshape(-1, SWEPT_WIDTH),
-            np.concatenate([r[1] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[2] for r in results]))
+    return (np.concatenate([r[1] for r in results]).reshape(-1, SWEPT_WIDTH),
+            np.concatenate([r[2] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[3] for r in results]))
 
 
 def frame_contacts(hits, static, n_objects):
@@ -661,7 +713,7 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     pair_filter = filters.kernel_filter()
     scan_frames(ps, poses, static, pair_filter, 0, 0, False, True)
     if continuous:
-        scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0,
+        scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True,
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
     smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
                             min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
@@ -738,9 +790,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
             pair_sink = TrianglePairs(TrianglePairWriter(h5) if h5 is not None else None)
         start = time.perf_counter()
         stage("scanning")
-        work = _Progress(index.size, index.size - 1 if continuous else 0, progress)
         hits, ids, fractions, counts = _scan_blocks(ps, poses, scene.static, filters, pair_sink, continuous,
-                                                    interpolation, time_tol, dist_tol, workers, work, scheduler)
+                                                    interpolation, time_tol, dist_tol, workers, progress, scheduler)
         if continuous:
             static_ids, static_fractions = _static_steps(hits, scene.static, index.size - 1)
             contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),

@@ -39,8 +39,17 @@ from typing import NamedTuple
 import numpy as np
 
 from .analytic import sphere_overlap_window
-from .broad import RULE_SWEPT, sweep_and_prune
-from .discrete import object_margins, object_world_boxes, pair_leaves, pair_scratch
+from .broad import RULE_SWEPT, abs_rotation, node_box, oriented_boxes_overlap, relative_pose, sweep_and_prune, with_room
+from .discrete import (
+    _frame_keys,
+    _pair_triangles,
+    _placed,
+    _still_touching,
+    object_margins,
+    object_world_boxes,
+    pair_leaves,
+    pair_scratch,
+)
 from .filters import pair_selected
 from .jit import njit
 from .motion import (
@@ -52,11 +61,19 @@ from .motion import (
     step_motions,
     substeps,
 )
-from .narrow import append_row, swept_contact_window
+from .narrow import append_row, intersecting_triangles, swept_contact_window
 from .packed import to_world
 from .rows import (
+    COUNT_NODE_PAIRS,
     COUNT_SUBSTEPS,
     COUNT_WIDTH,
+    HIT_A,
+    HIT_B,
+    HIT_FRAME,
+    HIT_PAIRS,
+    HIT_TRI_A,
+    HIT_TRI_B,
+    HIT_WIDTH,
     SWEPT_A,
     SWEPT_B,
     SWEPT_STEP,
@@ -223,28 +240,102 @@ def _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, 
     return buffers, t_first, t_last, pair_a, pair_b
 
 
+class FrameTests(NamedTuple):
+    """Buffers of the frame tests scan_intervals runs itself (``find_frames``), at each
+    step's last frame (N objects, W world vertex rows)."""
+    world: np.ndarray   #: float64 (W, 3) world vertices, filled lazily (discrete._placed)
+    stamp: np.ndarray   #: int64 (W,) the frame each world row was computed for
+    margin: np.ndarray  #: float64 (N,) rounding margins at the frame (discrete.object_margins)
+    still: np.ndarray   #: float64 (N, MOTION_WIDTH) zero motion rows
+    p: np.ndarray       #: float64 (3, 3) triangle scratch
+    q: np.ndarray       #: float64 (3, 3)
+
+
+@njit(cache=True)
+def _frame_tests(n_objects, n_world):
+    return FrameTests(np.empty((n_world, 3)), np.full(n_world, -1, np.int64), np.empty(n_objects),
+                      np.zeros((n_objects, MOTION_WIDTH)), np.empty((3, 3)), np.empty((3, 3)))
+
+
+@njit(cache=True)
+def _descent_hit(ps, rp, f, a, b, static, frame, scratch, buffers, counts):
+    """A triangle pair (tri_a, tri_b) of objects a and b intersecting at frame f (poses rp
+    (N, 3, 4)), or (-1, -1): the frame test's tandem descent, stopped at the first one.
+    Returns (buffers, tri_a, tri_b)."""
+    stack, leaves, tri, n_tri = _pair_triangles(ps, rp, frame.still, f, a, b, frame.margin[a] + frame.margin[b],
+                                                static, frame.stamp, frame.world, True, scratch, buffers.stack,
+                                                buffers.leaves, buffers.tri_pairs, counts)
+    buffers = Buffers(stack, leaves, tri)
+    if n_tri == 0:
+        return buffers, -1, -1
+    return buffers, tri[0, 0], tri[0, 1]
+
+
+@njit(cache=True)
+def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts):
+    """_descent_hit from a swept descent's leaf pairs leaves[:n_leaves] instead of a
+    descent of its own: they hold every leaf pair that overlaps at frame f, since boxes
+    bounding a motion hold the boxes at its poses. The leaf pairs whose boxes overlap
+    at frame f go to buffers.stack (free between descents). Returns (buffers, tri_a,
+    tri_b)."""
+    lo, hi = ps.node_lo, ps.node_hi
+    rel = relative_pose(rp[a], rp[b])
+    abs_r = abs_rotation(rel)
+    margin = frame.margin[a] + frame.margin[b]
+    near = with_room(buffers.stack, 0, n_leaves)
+    n_near = 0
+    for k in range(n_leaves):
+        counts[COUNT_NODE_PAIRS] += 1
+        if oriented_boxes_overlap(node_box(lo, hi, leaves[k, 0]), node_box(lo, hi, leaves[k, 1]), rel, abs_r,
+                                  margin):
+            near[n_near, 0] = leaves[k, 0]
+            near[n_near, 1] = leaves[k, 1]
+            n_near += 1
+    tri, n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
+                                        _placed(ps, rp, a, f, static, frame.stamp, frame.world),
+                                        _placed(ps, rp, b, f, static, frame.stamp, frame.world), buffers.tri_pairs,
+                                        0, True, counts)
+    buffers = Buffers(near, buffers.leaves, tri)
+    if n_tri == 0:
+        return buffers, -1, -1
+    return buffers, tri[0, 0], tri[0, 1]
+
+
 @njit(cache=True, inline="always")
-def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, touch0, touch1, state,
-                 buffers, counts):
+def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, touch0, touch1, find_touch1,
+                 state, buffers, counts):
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
     (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
-    t_last = 1: only the other end is searched). state: Step. Returns (buffers,
-    t_first, t_last, tri_a, tri_b)."""
+    t_last = 1: only the other end is searched). find_touch1: touch1 is not known
+    yet; find it (state.frame), with a triangle pair (hit_a, hit_b) touching at frame
+    k + 1, (-1, -1) if none. state: Step. Returns (buffers, t_first, t_last, tri_a,
+    tri_b, hit_a, hit_b)."""
     pair_margin = margin[a] + margin[b] + dist_tol
     if not (touch0 or touch1) and not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
-        return buffers, np.inf, -np.inf, -1, -1
+        return buffers, np.inf, -np.inf, -1, -1, -1, -1  # apart at the step's last frame too
+    hit_a = hit_b = -1
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
     n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre[mesh_a], rp0[a]), ps.sphere_radius[mesh_a],
                      _world_centre(ps.centre[mesh_b], rp0[b]), ps.sphere_radius[mesh_b])
     if n_sub > 1:
-        return _sub_stepped_window(ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol,
-                                   state.sub, state.pair, buffers, counts)
+        if find_touch1:
+            buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair, buffers,
+                                                 counts)
+        buffers, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
+            ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, state.sub, state.pair,
+            buffers, counts)
+        return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
     stack, leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, RULE_SWEPT, pair_margin, state.pair,
                                           buffers.stack, buffers.leaves, counts)
+    buffers = Buffers(stack, leaves, buffers.tri_pairs)
     if n_leaves == 0:
-        return Buffers(stack, leaves, buffers.tri_pairs), np.inf, -np.inf, -1, -1
+        return buffers, np.inf, -np.inf, -1, -1, -1, -1
+    if find_touch1:
+        buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, leaves, n_leaves, buffers,
+                                          counts)
+        touch1 = hit_a >= 0
     for o in (a, b):
         ensure_world(ps, rp0, o, k, static, state.stamp0, state.world0)
         ensure_world(ps, rp1, o, k + 1, static, state.stamp1, state.world1)
@@ -257,7 +348,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_t
     if touch1:
         t_first = min(t_first, 1.0)
         t_last = 1.0
-    return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
+    return Buffers(buffers.stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b, hit_a, hit_b
 
 
 @njit(cache=True)
@@ -267,12 +358,19 @@ def step_pair_key(k, a, b, n_objects):
 
 
 @njit(cache=True)
-def _touching_row(touching, k, a, b, n_objects):
-    """Row of ``touching`` (sorted step_pair_key of frame contacts) for pair (a, b) at frame
-    k, or -1."""
-    key = step_pair_key(k, a, b, n_objects)
-    i = np.searchsorted(touching, key)
-    return i if i < touching.shape[0] and touching[i] == key else -1
+def _frame_contacts(touching, touching_tris, k, n_objects):
+    """The frame-k rows of touching (sorted step_pair_key) and touching_tris (H, 2), as
+    sorted keys a * N + b (discrete._frame_keys) and their triangle pairs."""
+    start = np.searchsorted(touching, step_pair_key(k, 0, 0, n_objects))
+    stop = np.searchsorted(touching, step_pair_key(k + 1, 0, 0, n_objects))
+    return touching[start:stop] - step_pair_key(k, 0, 0, n_objects), touching_tris[start:stop]
+
+
+@njit(cache=True)
+def _key_row(keys, key):
+    """Row of key in sorted keys, or -1."""
+    i = np.searchsorted(keys, key)
+    return i if i < keys.shape[0] and keys[i] == key else -1
 
 
 class Step(NamedTuple):
@@ -283,11 +381,12 @@ class Step(NamedTuple):
     stamp1: np.ndarray  #: int64 (N,)
     sub: SubStep
     pair: object        #: discrete.PairScratch
+    frame: FrameTests
 
 
 @njit(cache=True, nogil=True)
-def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, interpolation, time_tol,
-                   dist_tol):
+def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, find_frames,
+                   interpolation, time_tol, dist_tol):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
@@ -295,24 +394,35 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     object pairs the frame tests found touching, touching_tris int64 (H, 2) a
     triangle pair of each (a pair touching at both frames of a step touches over the
     whole step: no search; at one frame: only the other end is searched);
-    interpolation: a motion.INTERPOLATIONS code;
-    time_tol in units of the step; dist_tol in length units. Returns (ids int64 (R,
-    SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64 (COUNT_WIDTH,)), see the
-    module docstring.
+    find_frames: touching holds frame step_start only, and the kernel runs the frame
+    tests of frames step_start + 1 to step_stop itself, each with the step that ends
+    there (a pair whose swept test finds nothing cannot touch at the step's last
+    frame; one that needs a swept search gets its frame test from the swept leaf
+    pairs, without a descent of its own); interpolation: a motion.INTERPOLATIONS code;
+    time_tol in units of the step; dist_tol in length units. Returns (hits int64 (H,
+    HIT_WIDTH), the frame tests' hits (first pair found; none without find_frames),
+    ids int64 (R, SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64
+    (COUNT_WIDTH,)), see the module docstring.
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
     state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), np.full(n_objects, -1, np.int64),
-                 np.full(n_objects, -1, np.int64), _sub_step_buffers(n_objects, n_world), pair_scratch())
+                 np.full(n_objects, -1, np.int64), _sub_step_buffers(n_objects, n_world), pair_scratch(),
+                 _frame_tests(n_objects, n_world if find_frames else 0))
     buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64))
     counts = np.zeros(COUNT_WIDTH, np.int64)
     margin = np.empty(n_objects)
     motion = np.empty((n_objects, MOTION_WIDTH))
+    hits = np.empty((16, HIT_WIDTH), np.int64)
+    n_hits = np.int64(0)
+    hit = np.empty(HIT_WIDTH, np.int64)
     ids = np.empty((16, SWEPT_WIDTH), np.int64)
     times = np.empty((16, TIMES_WIDTH))
     n_rows = np.int64(0)
     id_row = np.empty(SWEPT_WIDTH, np.int64)
     time_row = np.empty(TIMES_WIDTH)
+    keys0, tris0 = _frame_contacts(touching, touching_tris, step_start, n_objects)
+    keys1, tris1 = keys0, tris0
     for k in range(step_start, step_stop):
         rp0 = poses[k]
         rp1 = poses[k + 1]
@@ -320,23 +430,52 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         step_motions(interpolation, rp0, rp1, margin, motion)
         lo, hi = object_world_boxes(ps, rp0, rp1, motion, dist_tol, margin)
         candidates = sweep_and_prune(lo, hi)
+        step_hits = n_hits
+        if find_frames:
+            object_margins(ps, rp1, rp1, state.frame.margin)
+        else:
+            keys1, tris1 = _frame_contacts(touching, touching_tris, k + 1, n_objects)
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]
             if not pair_selected(pairs, a, b):
                 continue
-            row0 = _touching_row(touching, k, a, b, n_objects)
-            row1 = _touching_row(touching, k + 1, a, b, n_objects)
-            if row0 >= 0 and row1 >= 0:  # touching at both frames: the whole step
-                t_first, t_last, tri_a, tri_b = 0.0, 1.0, touching_tris[row0, 0], touching_tris[row0, 1]
+            key = a * n_objects + b
+            row0 = _key_row(keys0, key)
+            touch0 = row0 >= 0
+            hit_a = hit_b = -1  # a triangle pair touching at frame k + 1 found here (find_frames)
+            if not find_frames:
+                touch1 = _key_row(keys1, key) >= 0
+            elif touch0:  # as discrete.scan_frames: the pair that touched at frame k first
+                if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, keys0, tris0,
+                                   key, state.frame.p, state.frame.q, buffers.tri_pairs, counts):
+                    hit_a, hit_b = buffers.tri_pairs[0, 0], buffers.tri_pairs[0, 1]
+                else:
+                    buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair,
+                                                         buffers, counts)
+                touch1 = hit_a >= 0
             else:
-                buffers, t_first, t_last, tri_a, tri_b = _pair_window(
-                    ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, np.bool_(row0 >= 0),
-                    np.bool_(row1 >= 0), state, buffers, counts)
-                if t_first == np.inf:
-                    continue
-                if row0 >= 0:
-                    tri_a, tri_b = touching_tris[row0, 0], touching_tris[row0, 1]
+                touch1 = False
+            if touch0 and touch1:  # the whole step
+                t_first, t_last, tri_a, tri_b = 0.0, 1.0, tris0[row0, 0], tris0[row0, 1]
+            else:
+                buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
+                    ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, np.bool_(touch0),
+                    np.bool_(touch1), np.bool_(find_frames and not touch0), state, buffers, counts)
+                if not touch0:
+                    hit_a, hit_b = found_a, found_b
+                elif t_first < np.inf:
+                    tri_a, tri_b = tris0[row0, 0], tris0[row0, 1]
+            if hit_a >= 0:
+                hit[HIT_FRAME] = k + 1
+                hit[HIT_A] = a
+                hit[HIT_B] = b
+                hit[HIT_PAIRS] = 1
+                hit[HIT_TRI_A] = hit_a
+                hit[HIT_TRI_B] = hit_b
+                hits, n_hits = append_row(hits, n_hits, hit)
+            if t_first == np.inf:
+                continue
             id_row[SWEPT_STEP] = k
             id_row[SWEPT_A] = a
             id_row[SWEPT_B] = b
@@ -346,7 +485,10 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             time_row[T_END] = t_last
             ids, _ = append_row(ids, n_rows, id_row)
             times, n_rows = append_row(times, n_rows, time_row)
+        if find_frames:
+            keys1, tris1 = _frame_keys(hits, step_hits, n_hits, n_objects)
+        keys0, tris0 = keys1, tris1
         # frame k + 1 ends this step and starts the next: its world vertices move over
         # (swapping the buffers and their stamps), so no frame is transformed twice
-        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair)
-    return ids[:n_rows].copy(), times[:n_rows].copy(), counts
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame)
+    return hits[:n_hits].copy(), ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -194,7 +194,8 @@ def _scan_intervals(ps, poses, static, pairs):
     import numpy as np
 
     from .swept import scan_intervals
-    scan_intervals(ps, poses, static, pairs, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, 1, 1e-6, 1e-9)
+    scan_intervals(ps, poses, static, pairs, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True, 1, 1e-6,
+                   1e-9)
 
 
 def _triangle_pair_contact(ps, poses, static, pairs):

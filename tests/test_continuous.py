@@ -129,7 +129,10 @@ def test_frame_contacts_spare_searches_with_the_same_contacts(tmp_path, monkeypa
     """A box slides along a bar that bounces and turns, and the bar hits a post: contacts
     lasting several frames each (five intervals). Steps touching at both frames are not
     searched, steps touching at one frame are searched for the other end only; the
-    contacts equal those of the full certified search of every step, with less work."""
+    contacts equal those of the full certified search of every step, with less work
+    (the --triangle-pairs path, which takes the frame contacts from the discrete scan
+    rather than from the swept kernel, with those contacts hidden from the swept
+    kernel)."""
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     write_box(meshes / "bar.stl", extents=(4.0, 0.5, 0.5))
@@ -149,7 +152,7 @@ def test_frame_contacts_spare_searches_with_the_same_contacts(tmp_path, monkeypa
     fast = collide.scan(meshes, traj, mode="continuous", interpolation=interpolation)
     with monkeypatch.context() as patch:
         _without_frame_contacts(patch)
-        full = collide.scan(meshes, traj, mode="continuous", interpolation=interpolation)
+        full = collide.scan(meshes, traj, mode="continuous", interpolation=interpolation, triangle_pairs=True)
     assert fast.contacts["object_a"].size == 5
     for name, column in full.contacts.items():
         np.testing.assert_array_equal(fast.contacts[name], column, err_msg=name)
@@ -295,3 +298,63 @@ def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
         assert plain.shape[0] > 10 and plain_counts[COUNT_NODE_PAIRS] > 100
         np.testing.assert_array_equal(held, plain)
         np.testing.assert_array_equal(held_counts, plain_counts)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypatch, seed):
+    """A continuous scan runs its frame tests inside the swept kernel (pipeline._run_steps):
+    a pair's frame test at a step's last frame is skipped when the swept test finds the
+    pair apart over the step, and otherwise runs on the swept leaf pairs. It must find
+    exactly the (frame, pair) contacts of the discrete scan's own descents, and the same
+    swept contacts as the scan that takes the frame contacts from the discrete scan
+    (the --triangle-pairs path): FCL's robot, three copies turning and sliding through
+    two overlapping static copies of its environment, 40 frames in blocks of 7 and chunks
+    of 1, 4 and 64 steps."""
+    from conftest import DATA
+
+    from collide import pipeline
+    from collide.filters import build_filters
+    from collide.load import PoseArray, load_mesh
+    from collide.packed import pack_scene
+    from collide.rows import HIT_A, HIT_B, HIT_FRAME, SWEPT_A, SWEPT_B, SWEPT_STEP
+
+    rng = np.random.default_rng(seed)
+    env, rob = load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj")
+    ps, _ = pack_scene([env, rob], np.array([0, 0, 1, 1, 1]))
+    centre = env.vertices.mean(axis=0)
+    spread = 0.5 * np.ptp(env.vertices, axis=0)
+    n_frames = 40
+    poses = np.empty((n_frames, 5, 3, 4))
+    poses[:, 0] = np.eye(3, 4)
+    poses[:, 1] = _random_pose(rng, 0.05 * spread, 0.0, 0.3)
+    for o in (2, 3, 4):
+        poses[0, o] = _random_pose(rng, centre, spread, np.pi)
+        for f in range(1, n_frames):
+            turn = _random_pose(rng, 0.0, 0.0, 0.3)
+            poses[f, o, :, :3] = turn[:, :3] @ poses[f - 1, o, :, :3]
+            poses[f, o, :, 3] = poses[f - 1, o, :, 3] + rng.normal(scale=0.06, size=3) * spread
+    static = np.array([True, True, False, False, False])
+    filters = build_filters(["env", "env2", "rob", "rob2", "rob3"])
+    dist_tol = config.DIST_TOL_REL * float(np.linalg.norm(np.ptp(env.vertices, axis=0)))
+
+    def scan(continuous, pair_sink):
+        source = PoseArray(poses)
+        source.block = 7
+        hits, ids, fractions, _ = pipeline._scan_blocks(ps, source, static, filters, pair_sink, continuous, "screw",
+                                                        config.TIME_TOL, dist_tol, 1, None)
+        frame_pairs = sorted(map(tuple, hits[:, [HIT_FRAME, HIT_A, HIT_B]].tolist()))
+        order = np.lexsort((ids[:, SWEPT_B], ids[:, SWEPT_A], ids[:, SWEPT_STEP]))
+        return frame_pairs, ids[order][:, [SWEPT_STEP, SWEPT_A, SWEPT_B]], fractions[order]
+
+    discrete, _, _ = scan(False, None)
+    _, known_ids, known_fractions = scan(True, pipeline.TrianglePairs())
+    whole = (known_fractions[:, 0] == 0.0) & (known_fractions[:, 1] == 1.0)
+    assert len(discrete) > 100 and whole.sum() > 50 and (~whole).sum() > 10  # steps searched at one end or both
+    for size in (1, 4, 64):
+        with monkeypatch.context() as patch:
+            patch.setattr(pipeline, "_chunks", lambda n, w, max_size=64, size=size: [
+                (s, min(s + size, n)) for s in range(0, n, size)])
+            frame_pairs, ids, fractions = scan(True, None)
+        assert frame_pairs == discrete
+        np.testing.assert_array_equal(ids, known_ids)
+        np.testing.assert_array_equal(fractions, known_fractions)

@@ -191,15 +191,20 @@ def _triangle_distance(p, q):
 def test_moving_window_holds_every_moment_the_triangles_come_close():
     """windows.swept_window against sampling with python-fcl's triangle distance:
     wherever two linearly moving triangles come within the margin, t lies inside the
-    window. Half the pairs are nearly parallel faces a small gap apart (where the
-    normal axes, not the boxes, decide)."""
+    window. A third of the pairs are nearly parallel faces a small gap apart (where the
+    normal axes, not the boxes, decide), a third edges crossing a small gap apart
+    (where the edges' cross products decide)."""
     from collide.windows import swept_window
     rng = np.random.default_rng(11)
     samples = np.linspace(0.0, 1.0, 201)
     inside = empty = 0
-    for k in range(120):
+    for k in range(180):
         p0 = rng.normal(size=(3, 3))
-        if k % 2:
+        if k % 3 == 2:
+            q0 = _edge_crossing(p0, rng.uniform(-0.2, 0.2), rng)
+            p1 = p0 + rng.normal(size=3) * 0.2 + rng.normal(size=(3, 3)) * 0.02
+            q1 = q0 + rng.normal(size=3) * 0.2
+        elif k % 3 == 1:
             normal = np.cross(p0[1] - p0[0], p0[2] - p0[0])
             normal /= np.linalg.norm(normal)
             q0 = p0 + normal * rng.uniform(-0.2, 0.2) + rng.normal(size=(3, 3)) * 0.02 + rng.normal(size=3) * 0.3
@@ -217,6 +222,40 @@ def test_moving_window_holds_every_moment_the_triangles_come_close():
                 inside += 1
                 assert t_lo <= t <= t_hi, (k, t, t_lo, t_hi)
     assert inside > 0 and empty > 0
+
+
+def _edge_crossing(p, gap, rng):
+    """A triangle (3, 3) with an edge crossing p's first edge (p[0], p[1]) at its middle,
+    ``gap`` away along their common normal, and its third corner beyond it."""
+    e = p[1] - p[0]
+    f = np.cross(e, rng.normal(size=3))
+    f /= np.linalg.norm(f)
+    s = np.cross(e, f)
+    s /= np.linalg.norm(s)
+    if np.dot(p[2] - p[0], s) > 0:
+        s = -s  # p's third corner on the other side
+    middle = 0.5 * (p[0] + p[1]) + gap * s
+    return np.array([middle - f, middle + f, middle + s + 0.3 * rng.normal(size=3)])
+
+
+def test_edge_axes_separate_crossing_edges_that_boxes_and_normals_do_not():
+    """Two triangles whose edges cross 0.1 apart, tilted to every coordinate axis and
+    sliding: the boxes and both normals overlap all along, the cross product of the
+    two edges keeps them apart."""
+    from collide.windows import swept_window
+    rng = np.random.default_rng(3)
+    p0 = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.2], [0.9, 0.1, -0.8]])
+    q0 = _edge_crossing(p0, 0.1, rng)
+    assert _triangle_distance(p0, q0) > 0.099
+    slide = 0.2 * (p0[1] - p0[0])
+    p1, q1 = p0 + slide, q0 + slide
+    for t in np.linspace(0, 1, 11):
+        p, q = p0 + t * (p1 - p0), q0 + t * (q1 - q0)
+        assert (p.max(axis=0) >= q.min(axis=0)).all() and (q.max(axis=0) >= p.min(axis=0)).all()
+        for n in (np.cross(p0[1] - p0[0], p0[2] - p0[0]), np.cross(q0[1] - q0[0], q0[2] - q0[0])):
+            assert (p @ n).max() >= (q @ n).min() and (q @ n).max() >= (p @ n).min()
+    t_lo, t_hi = swept_window(p0, p1, q0, q1, 0.05)
+    assert t_lo > t_hi
 
 
 def test_normal_axes_separate_close_parallel_faces_that_boxes_do_not():

@@ -131,7 +131,9 @@ class _Progress:
     a motion step (continuous mode) weighs what a step has cost so far per frame's cost
     (STEP_WEIGHT before both have been timed). Time between two reports is charged to
     the kind of item the second one reports. ``done`` never decreases and ends equal to
-    ``total``; ``total`` is an estimate until then and may change as it improves."""
+    ``total``; ``total`` is an estimate until then and may change as it improves.
+    When the swept kernel runs the frame tests itself (_run_steps), only steps are
+    counted (a step includes its last frame's test)."""
 
     #: the cost of a motion step in frames before any is timed (swept tests cost 1.5-3
     #: frame tests on the benchmark scenes: benchmarks/bench_frames.py, bench_bodies.py)

@@ -18,11 +18,19 @@ kernel for a chunk of steps. Per step:
 4. triangles: certified CCD (narrow.swept_contact_window) gives the object
    pair's first and last contact during the step, over all its triangle pairs.
 
-The frame tests (discrete.scan_frames) have already found which object pairs
-touch at each frame: a pair touching at both frames of a step touches from its
-start to its end (the step's window runs from the earliest to the latest
-contact), so it is not searched; a pair touching at one frame is searched for
-the other end only.
+What touches at the frames spares work: a pair touching at both frames of a
+step touches from its start to its end (the step's window runs from the
+earliest to the latest contact), so it is not searched; a pair touching at one
+frame is searched for the other end only. Either the frame tests
+(discrete.scan_frames) have run before and say which pairs touch, or
+(``find_frames``) the kernel runs them itself, at each step's last frame, as
+part of the step: a pair touching at the step's first frame is tested as
+scan_frames would (the triangle pair that touched there first, then a descent
+to the first intersecting pair); any other pair is tested only if its swept
+test gets as far as leaf pairs, and then on those leaf pairs (they hold every
+leaf pair overlapping at the last frame), not by a descent of its own. So a
+continuous scan costs one broad phase and, for most pairs, one descent per
+step instead of two.
 
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
@@ -30,9 +38,10 @@ sub-steps (motion.substeps), each a small screw motion of its own with tight
 boxes: the first sub-step (in time) with a contact gives t_first, the last
 one t_last.
 
-Output (layouts in rows.py): ids int64 (R, SWEPT_WIDTH): step k, object_a,
-object_b, tri_a, tri_b (the pair touching first); times float64 (R,
-TIMES_WIDTH): t_begin, t_end, fractions of the step.
+Output (layouts in rows.py): hits int64 (H, HIT_WIDTH), the frame contacts found
+with ``find_frames`` (as scan_frames' first_only hits); ids int64 (R,
+SWEPT_WIDTH): step k, object_a, object_b, tri_a, tri_b (the pair touching first);
+times float64 (R, TIMES_WIDTH): t_begin, t_end, fractions of the step.
 """
 from typing import NamedTuple
 

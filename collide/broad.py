@@ -22,6 +22,15 @@ Two levels:
      (the bound is theta^2 / 8 times the distance to the screw axis, theta the
      step's turn), but on the benchmark scenes they saved under 1 % of the
      node pairs and cost a quarter of the descent's time.
+   - ``RULE_SWEPT_RIGID``: the same step when both objects move rigidly (screw
+     motion; not linear-vertex motion, under which they deform). Each node's box
+     is placed in the other object's body frame, at both ends of the step, and the
+     union of the two placements, widened by how far a point's path seen from
+     the other object can stray from its chord (rigid_frame_deviation), must
+     overlap the other node's own box, in both frames. Boxes in world axes are
+     loose for objects turned to them; here only one box of each test is turned.
+     On the benchmark scenes: 27 % (4 bodies) and 68 % (100 bodies) fewer node
+     pairs than RULE_SWEPT, 16 % and 73 % fewer leaf pairs.
 
 Poses are passed as ``pose`` float64 (4, 3, 4): rows [R | p] of A at pose 0,
 A at pose 1, B at pose 0, B at pose 1 (world x = R @ body x + p); RULE_POSE
@@ -31,14 +40,17 @@ reads only rows 0 and 2. ``motion`` float64 (2, MOTION_WIDTH): the motion rows
 Every box test is widened by ``margin`` (scene length units) so that rounding
 never drops a pair the exact narrow phase would report.
 """
+import math
+
 import numpy as np
 
 from .jit import njit
-from .motion import box_deviation, chord_interval, chord_interval_of, pose_tuple
+from .motion import M_ETA, M_THETA, box_deviation, chord_interval, chord_interval_of, pose_tuple, sphere_deviation
 from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
 
 RULE_POSE = 0
 RULE_SWEPT = 1
+RULE_SWEPT_RIGID = 2
 
 #: added to |R| entries of the SAT test so that near-parallel edge axes
 #: (cross products close to zero) cannot cause a false separation
@@ -220,6 +232,55 @@ def descent_deviations(lo, hi, pose, motion, stack, top):
 
 
 @njit(cache=True)
+def rigid_frame_deviation(lo, hi, node_b, pose, motion, a, b):
+    """How far (length units) any point of node_b's box (object B, body frame), seen in
+    A's body frame, can stray from its chord between its two placements there over the
+    step, when A and B move rigidly by the screw motions motion[a], motion[b]
+    (pose rows: pose[2 a], pose[2 a + 1] A's poses at both ends, likewise B's).
+
+    A point's position in A's frame is y(t) = Q(t) u(t), with Q(t) = R_A(t)^T and
+    u(t) = w(t) - p_A(t) its world offset from A's origin. Against the chord y0 + t (y1 -
+    y0): |u - ubar| <= dev_w + dev_p (the screws' deviation bounds of the point and of
+    A's origin); Q turns at a constant rate theta_A about a fixed axis, so |(Q(t) -
+    Qbar(t)) v| <= theta_A^2 / 8 |v|; and Qbar ubar - (1 - t) Q0 u0 - t Q1 u1 = t (1 - t)
+    (Q0 - Q1)(u1 - u0), at most theta_A / 4 |u1 - u0|. With c the box's centre and r its
+    half diagonal: |u| <= |c - p_A| + r, |u1 - u0| <= |c1 - c0| + theta_B r + |p_A1 -
+    p_A0|. Rounding margins of both motions included."""
+    m_a = motion[a]
+    m_b = motion[b]
+    pa0, pa1, pb0, pb1 = pose[2 * a], pose[2 * a + 1], pose[2 * b], pose[2 * b + 1]
+    r = 0.0
+    for i in range(3):
+        r += (0.5 * (hi[node_b, i] - lo[node_b, i])) ** 2
+    r = math.sqrt(r)
+    c0 = _placed_centre(lo, hi, node_b, pb0)
+    c1 = _placed_centre(lo, hi, node_b, pb1)
+    d0 = d1 = c_step = p_step = 0.0
+    for i in range(3):
+        d0 += (c0[i] - pa0[i, 3]) ** 2
+        d1 += (c1[i] - pa1[i, 3]) ** 2
+        c_step += (c1[i] - c0[i]) ** 2
+        p_step += (pa1[i, 3] - pa0[i, 3]) ** 2
+    u_max = max(math.sqrt(d0), math.sqrt(d1)) + r
+    u_step = math.sqrt(c_step) + m_b[M_THETA] * r + math.sqrt(p_step)
+    theta = m_a[M_THETA]
+    bound = (box_deviation(m_b, lo[node_b], hi[node_b], pb0) + sphere_deviation(m_a, pa0[:, 3]) + m_a[M_ETA]
+             + 0.125 * theta * theta * u_max + 0.25 * theta * u_step)
+    return bound * (1.0 + 2.0 ** -40)
+
+
+@njit(cache=True)
+def _placed_centre(lo, hi, node, rp):
+    """World centre (3-tuple) of node's box placed by pose rp (3, 4)."""
+    b0 = 0.5 * (lo[node, 0] + hi[node, 0])
+    b1 = 0.5 * (lo[node, 1] + hi[node, 1])
+    b2 = 0.5 * (lo[node, 2] + hi[node, 2])
+    return (rp[0, 3] + rp[0, 0] * b0 + rp[0, 1] * b1 + rp[0, 2] * b2,
+            rp[1, 3] + rp[1, 0] * b0 + rp[1, 1] * b1 + rp[1, 2] * b2,
+            rp[2, 3] + rp[2, 0] * b0 + rp[2, 1] * b1 + rp[2, 2] * b2)
+
+
+@njit(cache=True)
 def _swept_boxes_overlap(lo, hi, na, nb, pose, margin_a, margin_b):
     """World boxes of nodes na (object A) and nb (object B) over the step overlap: each
     node's chord box widened by margin_a, margin_b (its deviation bound and the
@@ -361,17 +422,44 @@ def _hold(held, row, box, side):
 
 
 @njit(cache=True)
-def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, counts):
-    """overlapping_leaves under RULE_SWEPT, run to the end: the same leaf pairs in the same
-    order, the same node pairs tested, but each stacked node pair carries the world box
-    of the node its parent pair did not open, so that a node's box is computed once when
-    it is paired with the children of another, not once for each of those pairs.
-    Returns (stack, top = 0, out, k), rows out[:k]."""
+def rigid_deviations(lo, hi, pose, motion, stack, top):
+    """rigid_frame_deviation of A's nodes seen in B's frame and of B's nodes seen in A's,
+    for the nodes under stack rows [0, top) (the node pairs a descent starts from)."""
+    dev_a = 0.0
+    dev_b = 0.0
+    for row in range(top):
+        dev_a = max(dev_a, rigid_frame_deviation(lo, hi, stack[row, 0], pose, motion, 1, 0))
+        dev_b = max(dev_b, rigid_frame_deviation(lo, hi, stack[row, 1], pose, motion, 0, 1))
+    return dev_a, dev_b
+
+
+@njit(cache=True)
+def _apart(box_a, box_b):
+    """Boxes (6-tuples) do not overlap."""
+    return (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
+            or box_a[2] > box_b[5] or box_b[2] > box_a[5])
+
+
+@njit(cache=True)
+def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, out, counts):
+    """Overlapping leaf pairs over a step, run to the end: under RULE_SWEPT
+    (overlapping_leaves' leaf pairs in the same order, the same node pairs tested) or,
+    when ``rigid``, under RULE_SWEPT_RIGID. Each stacked node pair carries the placed box
+    of the node its parent pair did not open (in the world, or in the other object's
+    frame), so that a node's box is computed once when it is paired with the children
+    of another, not once for each of those pairs. Returns (stack, top = 0, out, k),
+    rows out[:k]."""
     held = np.empty((stack.shape[0], 7))
     for row in range(top):
         held[row, _HELD_SIDE] = _HELD_NONE
-    rp_a0, rp_a1, rp_b0, rp_b1 = pose_tuple(pose[0]), pose_tuple(pose[1]), pose_tuple(pose[2]), pose_tuple(pose[3])
-    dev_a, dev_b = descent_deviations(lo, hi, pose, motion, stack, top)
+    if rigid:  # A's nodes placed in B's frame, B's in A's
+        rp_a0, rp_a1 = relative_pose(pose[2], pose[0]), relative_pose(pose[3], pose[1])
+        rp_b0, rp_b1 = relative_pose(pose[0], pose[2]), relative_pose(pose[1], pose[3])
+        dev_a, dev_b = rigid_deviations(lo, hi, pose, motion, stack, top)
+    else:
+        rp_a0, rp_a1 = pose_tuple(pose[0]), pose_tuple(pose[1])
+        rp_b0, rp_b1 = pose_tuple(pose[2]), pose_tuple(pose[3])
+        dev_a, dev_b = descent_deviations(lo, hi, pose, motion, stack, top)
     margin_a = margin + dev_a
     margin_b = margin + dev_b
     k = np.int64(0)
@@ -387,20 +475,18 @@ def swept_leaves(lo, hi, first, count, pose, motion, margin, stack, top, out, co
             nb = stack[top, 1]
             counts[COUNT_NODE_PAIRS] += 1
             side = held[top, _HELD_SIDE]
-            box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(node_box(lo, hi, na), rp_a0,
-                                                                                 rp_a1, margin_a)
-            box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(node_box(lo, hi, nb), rp_b0,
-                                                                                 rp_b1, margin_b)
-            if (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
-                    or box_a[2] > box_b[5] or box_b[2] > box_a[5]):
+            own_a = node_box(lo, hi, na)
+            own_b = node_box(lo, hi, nb)
+            box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(own_a, rp_a0, rp_a1, margin_a)
+            box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(own_b, rp_b0, rp_b1, margin_b)
+            if (_apart(own_a, box_b) or _apart(own_b, box_a)) if rigid else _apart(box_a, box_b):
                 continue
             leaf_a = count[na] > 0
             leaf_b = count[nb] > 0
             if leaf_a and leaf_b:
                 k = _put_pair(out, k, na, nb)
                 continue
-            if _open(first, na, nb, opens_a(leaf_a, leaf_b, node_box(lo, hi, na), node_box(lo, hi, nb)), stack,
-                     top):
+            if _open(first, na, nb, opens_a(leaf_a, leaf_b, own_a, own_b), stack, top):
                 _hold(held, top, box_b, _HELD_B)
                 _hold(held, top + 1, box_b, _HELD_B)
             else:

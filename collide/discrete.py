@@ -29,6 +29,7 @@ from . import config
 from .broad import (
     RULE_POSE,
     RULE_SWEPT,
+    RULE_SWEPT_RIGID,
     abs_rotation,
     grown_rows,
     node_box,
@@ -128,14 +129,15 @@ def start_descent(ps, rp0, rp1, motion, a, b, scratch, stack):
 
 @njit(cache=True)
 def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves, counts):
-    """All overlapping BVH leaf pairs of objects a and b (broad.overlapping_leaves) for poses
+    """All overlapping BVH leaf pairs of objects a and b under broad's ``rule`` for poses
     rp0 -> rp1 (N, 3, 4) and motion rows (N, MOTION_WIDTH). scratch: PairScratch;
     stack, leaves: int64 (cap, 2) buffers. Returns (stack, leaves, count)."""
     top = start_descent(ps, rp0, rp1, motion, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
-    if rule == RULE_SWEPT:
+    if rule == RULE_SWEPT or rule == RULE_SWEPT_RIGID:
         stack, top, leaves, n = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
-                                             scratch.motion, margin, stack, top, leaves, counts)
+                                             scratch.motion, rule == RULE_SWEPT_RIGID, margin, stack, top, leaves,
+                                             counts)
     else:
         stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
                                                    scratch.pose, scratch.motion, rule, margin, stack, top,

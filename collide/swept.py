@@ -14,7 +14,8 @@ kernel for a chunk of steps. Per step:
    deviation bounds) around the chords can only meet when
    (v·v)t² + 2(v·s)t + (s·s − r²) <= 0; a pair whose window misses [0, 1] is
    skipped;
-3. BVH leaves: tandem descent with boxes bounding the motion (RULE_SWEPT);
+3. BVH leaves: tandem descent with boxes bounding the motion (broad.RULE_SWEPT_RIGID
+   under screw motion, RULE_SWEPT under linear-vertex motion);
 4. triangles: certified CCD (narrow.swept_contact_window) gives the object
    pair's first and last contact during the step, over all its triangle pairs.
 
@@ -48,7 +49,16 @@ from typing import NamedTuple
 import numpy as np
 
 from .analytic import sphere_overlap_window
-from .broad import RULE_SWEPT, abs_rotation, node_box, oriented_boxes_overlap, relative_pose, sweep_and_prune, with_room
+from .broad import (
+    RULE_SWEPT,
+    RULE_SWEPT_RIGID,
+    abs_rotation,
+    node_box,
+    oriented_boxes_overlap,
+    relative_pose,
+    sweep_and_prune,
+    with_room,
+)
 from .discrete import (
     _frame_keys,
     _pair_triangles,
@@ -64,6 +74,7 @@ from .jit import njit
 from .motion import (
     M_ETA,
     MOTION_WIDTH,
+    SCREW,
     pose_at,
     screw_motion,
     sphere_deviation,
@@ -191,7 +202,7 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
         pose_at(motion[o], rp0[o], rp1[o], t1, sub.pose1[o])
         screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # a small turn: never half
     counts[COUNT_SUBSTEPS] += 1
-    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT, pair_margin,
+    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT_RIGID, pair_margin,
                                           pair, buffers.stack, buffers.leaves, counts)
     if n_leaves == 0:
         return Buffers(stack, leaves, buffers.tri_pairs), np.inf, -np.inf, -1, -1
@@ -311,15 +322,17 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts)
 
 
 @njit(cache=True, inline="always")
-def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, touch0, touch1, find_touch1,
-                 state, buffers, counts):
+def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, touch0, touch1,
+                 find_touch1, state, buffers, counts):
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
     (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
     t_last = 1: only the other end is searched). find_touch1: touch1 is not known
     yet; find it (state.frame), with a triangle pair (hit_a, hit_b) touching at frame
     k + 1, (-1, -1) if none. state: Step. Returns (buffers, t_first, t_last, tri_a,
-    tri_b, hit_a, hit_b)."""
+    tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
+    motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
+    always rigid."""
     pair_margin = margin[a] + margin[b] + dist_tol
     if not (touch0 or touch1) and not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
         return buffers, np.inf, -np.inf, -1, -1, -1, -1  # apart at the step's last frame too
@@ -336,8 +349,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_t
             ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, state.sub, state.pair,
             buffers, counts)
         return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
-    stack, leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, RULE_SWEPT, pair_margin, state.pair,
-                                          buffers.stack, buffers.leaves, counts)
+    stack, leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, rule, pair_margin, state.pair, buffers.stack,
+                                          buffers.leaves, counts)
     buffers = Buffers(stack, leaves, buffers.tri_pairs)
     if n_leaves == 0:
         return buffers, np.inf, -np.inf, -1, -1, -1, -1
@@ -430,6 +443,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     n_rows = np.int64(0)
     id_row = np.empty(SWEPT_WIDTH, np.int64)
     time_row = np.empty(TIMES_WIDTH)
+    rule = RULE_SWEPT_RIGID if interpolation == SCREW else RULE_SWEPT
     keys0, tris0 = _frame_contacts(touching, touching_tris, step_start, n_objects)
     keys1, tris1 = keys0, tris0
     for k in range(step_start, step_stop):
@@ -469,7 +483,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 t_first, t_last, tri_a, tri_b = 0.0, 1.0, tris0[row0, 0], tris0[row0, 1]
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
-                    ps, rp0, rp1, motion, margin, k, a, b, static, time_tol, dist_tol, np.bool_(touch0),
+                    ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, np.bool_(touch0),
                     np.bool_(touch1), np.bool_(find_frames and not touch0), state, buffers, counts)
                 if not touch0:
                     hit_a, hit_b = found_a, found_b

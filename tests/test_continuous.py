@@ -331,12 +331,67 @@ def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
                                                   np.iinfo(np.int64).max, counts)
             else:
                 _, _, out, k = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
-                                            scratch.motion, 1e-9, stack, top, out, counts)
+                                            scratch.motion, False, 1e-9, stack, top, out, counts)
             found.append((out[:k].copy(), counts.copy()))
         (plain, plain_counts), (held, held_counts) = found
         assert plain.shape[0] > 10 and plain_counts[COUNT_NODE_PAIRS] > 100
         np.testing.assert_array_equal(held, plain)
         np.testing.assert_array_equal(held_counts, plain_counts)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screws(seed):
+    """broad.RULE_SWEPT_RIGID (each node's box placed in the other object's frame at both
+    ends of the step, widened by rigid_frame_deviation) against sampling: at 81 moments
+    of the step, both objects placed by their screw motions (motion.pose_at), every
+    leaf pair whose oriented boxes overlap there (the frame test's RULE_POSE descent)
+    is among the rigid descent's leaf pairs. FCL's robot and environment, both turning
+    (up to 1.2 and 0.6 radians) and sliding; the robot starts inside the environment."""
+    from conftest import DATA
+
+    from collide.broad import RULE_POSE, RULE_SWEPT, RULE_SWEPT_RIGID
+    from collide.discrete import object_margins, pair_leaves, pair_scratch
+    from collide.load import load_mesh
+    from collide.motion import INTERPOLATIONS, MOTION_WIDTH, pose_at, step_motions
+    from collide.packed import pack_scene
+    from collide.rows import COUNT_WIDTH
+
+    rng = np.random.default_rng(100 + seed)
+    env, rob = load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj")
+    ps, _ = pack_scene([env, rob], np.array([0, 1]))
+    centre = env.vertices.mean(axis=0)
+    spread = 0.2 * np.ptp(env.vertices, axis=0)
+    poses = np.empty((2, 2, 3, 4))
+    poses[0, 0] = _random_pose(rng, 0.0, 0.0, 0.3)
+    poses[0, 1] = _random_pose(rng, centre, spread, np.pi)
+    for o, (angle, shift) in enumerate(((0.6, 0.02), (1.2, 0.1))):
+        turn = _random_pose(rng, 0.0, 0.0, angle)
+        poses[1, o, :, :3] = turn[:, :3] @ poses[0, o, :, :3]
+        poses[1, o, :, 3] = poses[0, o, :, 3] + rng.normal(scale=shift, size=3) * spread
+    margin = np.empty(2)
+    motion = np.empty((2, MOTION_WIDTH))
+    object_margins(ps, poses[0], poses[1], margin)
+    step_motions(INTERPOLATIONS["screw"], poses[0], poses[1], margin, motion)
+    pair_margin = margin.sum() + 1e-9
+    still = np.zeros((2, MOTION_WIDTH))
+
+    def leaf_pairs(rp0, rp1, rows, rule):
+        stack, leaves = np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
+        _, leaves, n = pair_leaves(ps, rp0, rp1, rows, 0, 1, rule, pair_margin, pair_scratch(), stack, leaves,
+                                   np.zeros(COUNT_WIDTH, np.int64))
+        return set(map(tuple, leaves[:n].tolist()))
+
+    rigid = leaf_pairs(poses[0], poses[1], motion, RULE_SWEPT_RIGID)
+    world = leaf_pairs(poses[0], poses[1], motion, RULE_SWEPT)
+    sampled = set()
+    at = np.empty((2, 3, 4))
+    for t in np.linspace(0.0, 1.0, 81):
+        for o in range(2):
+            pose_at(motion[o], poses[0, o], poses[1, o], t, at[o])
+        sampled |= leaf_pairs(at, at, still, RULE_POSE)
+    assert len(sampled) > 20
+    assert sampled <= rigid, sorted(sampled - rigid)[:5]
+    assert sampled <= world
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -339,14 +339,21 @@ def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
         np.testing.assert_array_equal(held_counts, plain_counts)
 
 
-@pytest.mark.parametrize("seed", range(6))
+#: (turn in radians, slide as a share of the environment's size) of the environment, then of
+#: the robot, over the step: both turning, one of them only, or neither
+_STEP_MOTIONS = [((0.6, 0.02), (1.2, 0.1)), ((0.8, 0.0), (0.0, 0.01)), ((0.0, 0.01), (1.2, 0.0)),
+                 ((0.3, 0.05), (0.3, 0.05)), ((0.0, 0.0), (0.0, 0.1))]
+
+
+@pytest.mark.parametrize("seed", range(10))
 def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screws(seed):
     """broad.RULE_SWEPT_RIGID (each node's box placed in the other object's frame at both
     ends of the step, widened by rigid_frame_deviation) against sampling: at 81 moments
     of the step, both objects placed by their screw motions (motion.pose_at), every
     leaf pair whose oriented boxes overlap there (the frame test's RULE_POSE descent)
-    is among the rigid descent's leaf pairs. FCL's robot and environment, both turning
-    (up to 1.2 and 0.6 radians) and sliding; the robot starts inside the environment."""
+    is among the rigid descent's leaf pairs. FCL's robot and environment, turning
+    (up to 1.2 radians) and sliding, both, one or neither of them (_STEP_MOTIONS); the
+    robot starts inside the environment."""
     from conftest import DATA
 
     from collide.broad import RULE_POSE, RULE_SWEPT, RULE_SWEPT_RIGID
@@ -364,8 +371,8 @@ def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screw
     poses = np.empty((2, 2, 3, 4))
     poses[0, 0] = _random_pose(rng, 0.0, 0.0, 0.3)
     poses[0, 1] = _random_pose(rng, centre, spread, np.pi)
-    for o, (angle, shift) in enumerate(((0.6, 0.02), (1.2, 0.1))):
-        turn = _random_pose(rng, 0.0, 0.0, angle)
+    for o, (angle, shift) in enumerate(_STEP_MOTIONS[seed % len(_STEP_MOTIONS)]):
+        turn = _random_pose(rng, 0.0, 0.0, angle) if angle else np.eye(3, 4)
         poses[1, o, :, :3] = turn[:, :3] @ poses[0, o, :, :3]
         poses[1, o, :, 3] = poses[0, o, :, 3] + rng.normal(scale=shift, size=3) * spread
     margin = np.empty(2)

@@ -218,6 +218,20 @@ def _frame_keys(hits, start, stop, n_objects):
     return keys[order], tris
 
 
+@njit(cache=True)
+def append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b):
+    """Append the hit row (frame f, objects a and b, n_tri triangle pairs, one of them
+    (tri_a, tri_b)) to hits (H, HIT_WIDTH), grown when full, through the scratch row
+    hit (HIT_WIDTH,). Returns (hits, n_hits)."""
+    hit[HIT_FRAME] = f
+    hit[HIT_A] = a
+    hit[HIT_B] = b
+    hit[HIT_PAIRS] = n_tri
+    hit[HIT_TRI_A] = tri_a
+    hit[HIT_TRI_B] = tri_b
+    return append_row(hits, n_hits, hit)
+
+
 @njit(cache=True, nogil=True)
 def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs, first_only):
     """Discrete scan of frames [frame_start, frame_stop).
@@ -268,13 +282,7 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
             if n_tri == 0:
                 continue
             tri_a, tri_b = _smallest_pair(tri, n_tri)
-            hit[HIT_FRAME] = f
-            hit[HIT_A] = a
-            hit[HIT_B] = b
-            hit[HIT_PAIRS] = n_tri
-            hit[HIT_TRI_A] = tri_a
-            hit[HIT_TRI_B] = tri_b
-            hits, n_hits = append_row(hits, n_hits, hit)
+            hits, n_hits = append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b)
             if collect_pairs:
                 for k in range(n_tri):
                     row[PAIR_FRAME] = f

@@ -64,6 +64,7 @@ from .discrete import (
     _pair_triangles,
     _placed,
     _still_touching,
+    append_hit,
     object_margins,
     object_world_boxes,
     pair_leaves,
@@ -87,12 +88,6 @@ from .rows import (
     COUNT_NODE_PAIRS,
     COUNT_SUBSTEPS,
     COUNT_WIDTH,
-    HIT_A,
-    HIT_B,
-    HIT_FRAME,
-    HIT_PAIRS,
-    HIT_TRI_A,
-    HIT_TRI_B,
     HIT_WIDTH,
     SWEPT_A,
     SWEPT_B,
@@ -490,13 +485,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 elif t_first < np.inf:
                     tri_a, tri_b = tris0[row0, 0], tris0[row0, 1]
             if hit_a >= 0:
-                hit[HIT_FRAME] = k + 1
-                hit[HIT_A] = a
-                hit[HIT_B] = b
-                hit[HIT_PAIRS] = 1
-                hit[HIT_TRI_A] = hit_a
-                hit[HIT_TRI_B] = hit_b
-                hits, n_hits = append_row(hits, n_hits, hit)
+                hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, 1, hit_a, hit_b)
             if t_first == np.inf:
                 continue
             id_row[SWEPT_STEP] = k

@@ -102,15 +102,45 @@ from .rows import (
 
 
 @njit(cache=True)
-def ensure_world(ps, rp, o, frame, static, stamp, world):
-    """Transform object o's vertices to the world buffer once per frame
-    (once per call for static objects)."""
-    if stamp[o] == frame or (static[o] and stamp[o] >= 0):
-        return
+def place_leaves(ps, rp, o, key, leaves, n_leaves, side, stamp, world):
+    """World positions, under pose rp (N, 3, 4), of the vertices of object o's triangles
+    in column ``side`` of leaves[:n_leaves] (its leaves of the leaf pairs) into its rows
+    of world (W, 3), for the rows whose stamp (W,) is not ``key`` yet (then set to
+    it): a pair's window reads only the triangles of its leaf pairs, so big meshes are
+    not transformed whole at every frame. The arithmetic of narrow.placed_triangle."""
     mesh = ps.object_mesh[o]
-    body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
-    to_world(body, rp[o], world, ps.world_start[o])
-    stamp[o] = frame
+    v_start = ps.vert_start[mesh]
+    f_start = ps.face_start[mesh]
+    base = ps.world_start[o]
+    pose = rp[o]
+    for k in range(n_leaves):
+        node = leaves[k, side]
+        for i in range(ps.node_first[node], ps.node_first[node] + ps.node_count[node]):
+            face = f_start + ps.prim_ids[i]
+            for corner in range(3):
+                v = ps.faces[face, corner]
+                row = base + v
+                if stamp[row] == key:
+                    continue
+                x = ps.vertices[v_start + v, 0]
+                y = ps.vertices[v_start + v, 1]
+                z = ps.vertices[v_start + v, 2]
+                for c in range(3):
+                    world[row, c] = pose[c, 3] + pose[c, 0] * x + pose[c, 1] * y + pose[c, 2] * z
+                stamp[row] = key
+
+
+@njit(cache=True)
+def _stamps_ready(ps, o, state):
+    """Set object o's rows of both stamp buffers of state (Step) to 'not computed' the first
+    time it is used: most objects of a scan need no window, and big meshes' rows are
+    not touched for them."""
+    if state.ready[o]:
+        return
+    for row in range(ps.world_start[o], ps.world_start[o + 1]):
+        state.stamp0[row] = -1
+        state.stamp1[row] = -1
+    state.ready[o] = True
 
 
 @njit(cache=True)
@@ -353,9 +383,11 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
         buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, leaves, n_leaves, buffers,
                                           counts)
         touch1 = hit_a >= 0
-    for o in (a, b):
-        ensure_world(ps, rp0, o, k, static, state.stamp0, state.world0)
-        ensure_world(ps, rp1, o, k + 1, static, state.stamp1, state.world1)
+    for side in range(2):  # static objects: one key for all frames
+        o = a if side == 0 else b
+        _stamps_ready(ps, o, state)
+        place_leaves(ps, rp0, o, -2 if static[o] else k, leaves, n_leaves, side, state.stamp0, state.world0)
+        place_leaves(ps, rp1, o, -2 if static[o] else k + 1, leaves, n_leaves, side, state.stamp1, state.world1)
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
                                                        leaves, time_tol, dist_tol, np.bool_(not touch0),
                                                        np.bool_(not touch1), buffers.tri_pairs, counts)
@@ -394,8 +426,9 @@ class Step(NamedTuple):
     """Fixed-size buffers of one scan_intervals call (N objects, W world vertex rows)."""
     world0: np.ndarray  #: float64 (W, 3) world vertices at the step's start (rows of objects in use)
     world1: np.ndarray  #: float64 (W, 3) and end
-    stamp0: np.ndarray  #: int64 (N,) frame whose vertices world0 holds for each object
-    stamp1: np.ndarray  #: int64 (N,)
+    stamp0: np.ndarray  #: int64 (W,) the frame (-2: static) each row of world0 was computed for
+    stamp1: np.ndarray  #: int64 (W,) (rows of objects not ready: not set)
+    ready: np.ndarray   #: bool (N,) the object's rows of stamp0 and stamp1 are set
     sub: SubStep
     pair: object        #: discrete.PairScratch
     frame: FrameTests
@@ -423,8 +456,9 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
-    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), np.full(n_objects, -1, np.int64),
-                 np.full(n_objects, -1, np.int64), _sub_step_buffers(n_objects, n_world), pair_scratch(),
+    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), np.empty(n_world, np.int64),
+                 np.empty(n_world, np.int64), np.zeros(n_objects, np.bool_), _sub_step_buffers(n_objects, n_world),
+                 pair_scratch(),
                  _frame_tests(n_objects, n_world if find_frames else 0))
     buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64))
     counts = np.zeros(COUNT_WIDTH, np.int64)
@@ -502,5 +536,6 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         keys0, tris0 = keys1, tris1
         # frame k + 1 ends this step and starts the next: its world vertices move over
         # (swapping the buffers and their stamps), so no frame is transformed twice
-        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame)
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.ready, state.sub, state.pair,
+                     state.frame)
     return hits[:n_hits].copy(), ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -6,13 +6,16 @@ from conftest import REPO, run_cli
 import collide
 
 
-def test_scan_on_a_local_dask_cluster_matches_the_local_scan():
+@pytest.mark.parametrize("triangle_pairs", [True, False])
+def test_scan_on_a_local_dask_cluster_matches_the_local_scan(triangle_pairs):
+    """Both continuous paths: frame tests then swept tests (--triangle-pairs), and frame
+    tests run inside the swept kernel (the default)."""
     distributed = pytest.importorskip("distributed")
     meshes, traj = REPO / "examples" / "tunnel" / "meshes", REPO / "examples" / "tunnel" / "traj.h5"
-    local = collide.scan(meshes, traj, triangle_pairs=True)
+    local = collide.scan(meshes, traj, triangle_pairs=triangle_pairs)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
-        remote = collide.scan(meshes, traj, triangle_pairs=True, scheduler=cluster.scheduler_address)
+        remote = collide.scan(meshes, traj, triangle_pairs=triangle_pairs, scheduler=cluster.scheduler_address)
     assert remote.contacts["t_begin"].size == 1
     for name in local.contacts:
         assert np.array_equal(local.contacts[name], remote.contacts[name], equal_nan=True), name

@@ -409,7 +409,7 @@ def _swept_levels_kernel():
     from collide.motion import MOTION_WIDTH, step_motions
     from collide.narrow import _swept_candidates
     from collide.rows import COUNT_WIDTH
-    from collide.swept import place_leaves, spheres_may_meet
+    from collide.swept import place_pair_leaves, spheres_may_meet
 
     @njit(nogil=True)
     def levels(ps, poses, static, pairs, interpolation, dist_tol, level):
@@ -417,8 +417,9 @@ def _swept_levels_kernel():
         n_world = ps.world_start[n_objects]
         world0 = np.empty((n_world, 3))
         world1 = np.empty((n_world, 3))
-        stamp0 = np.full(n_world, -1, np.int64)
-        stamp1 = np.full(n_world, -1, np.int64)
+        stamp0 = np.empty(n_world, np.int64)
+        stamp1 = np.empty(n_world, np.int64)
+        ready = np.zeros(n_objects, np.bool_)
         scratch = pair_scratch()
         stack = np.empty((64, 2), np.int64)
         leaves = np.empty((256, 2), np.int64)
@@ -449,10 +450,8 @@ def _swept_levels_kernel():
                                                       stack, leaves, counts)
                 if level < 3 or n_leaves == 0:
                     continue
-                for side in range(2):
-                    o = a if side == 0 else b
-                    place_leaves(ps, rp0, o, -2 if static[o] else k, leaves, n_leaves, side, stamp0, world0)
-                    place_leaves(ps, rp1, o, -2 if static[o] else k + 1, leaves, n_leaves, side, stamp1, world1)
+                place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, ready, stamp0, world0, stamp1,
+                                  world1)
                 cand, n, _ = _swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
                                             world0, world1, ps.world_start[a], ps.world_start[b], motion[a],

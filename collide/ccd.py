@@ -1008,14 +1008,31 @@ def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
     "no contact at or before t_max" (for callers that only need a minimum: a triangle
     pair's first contact over its 15 queries). work: CCDWork scratch (x_t0 and x_t1
     may be its x0 and x1); counts: int64 rows.COUNT_* counters."""
+    if query_excluded(kind, x_t0, x_t1, dist_tol, t_max, work.scratch):
+        return np.inf
+    return searched_toi(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts)
+
+
+@njit(cache=True)
+def query_excluded(kind, x_t0, x_t1, dist_tol, t_max, scratch):
+    """The cheap exclusions of toi_before: no contact at all, or none before t_max, is
+    certain without a search (most queries of a triangle pair). scratch: float64 (8, 3).
+    A function of its own taking just these arrays: a call costs reference counting
+    for every array it is passed, and CCDWork holds eleven."""
     m = _largest_coordinates(x_t0, x_t1)
     delta = _rounding_bound(m)
-    tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
-    if _root_excluded(kind, x_t0, x_t1, tol_out):
-        return np.inf  # the common case
-    if _coplanarity_excluded(kind, x_t0, x_t1, 0.0, min(1.0, t_max), dist_tol, m, work.scratch):
-        return np.inf  # never coplanar (within dist_tol) before t_max
+    if _root_excluded(kind, x_t0, x_t1, (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])):
+        return True  # the common case
+    return _coplanarity_excluded(kind, x_t0, x_t1, 0.0, min(1.0, t_max), dist_tol, m, scratch)
+
+
+@njit(cache=True)
+def searched_toi(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
+    """toi_before of a query that query_excluded did not exclude: the box search."""
+    m = _largest_coordinates(x_t0, x_t1)
+    delta = _rounding_bound(m)
     counts[COUNT_CCD_QUERIES] += 1
+    tol_out = (dist_tol + delta[0], dist_tol + delta[1], dist_tol + delta[2])
     tol_in = (tol_out[0] + delta[0], tol_out[1] + delta[1], tol_out[2] + delta[2])
     return _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_max, work, counts)
 
@@ -1078,6 +1095,7 @@ def disjoint_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
     counts[COUNT_CCD_PAIRS] += 1
     x0 = work.x0
     x1 = work.x1
+    scratch = work.scratch
     # np.int64: the query code is compiled once for both kinds, not once per literal kind
     vertex_face = np.int64(VERTEX_FACE)
     edge_edge = np.int64(EDGE_EDGE)
@@ -1090,8 +1108,9 @@ def disjoint_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
                 for r in range(3):
                     x0[r + 1, c] = other0[r, c]
                     x1[r + 1, c] = other1[r, c]
-            best = min(best, toi_before(vertex_face, x0, x1, time_tol, dist_tol, min(best, t_max), work,
-                                        counts))
+            limit = min(best, t_max)
+            if not query_excluded(vertex_face, x0, x1, dist_tol, limit, scratch):
+                best = min(best, searched_toi(vertex_face, x0, x1, time_tol, dist_tol, limit, work, counts))
             if best == 0.0:
                 return 0.0
     for i in range(3):  # edge i of p against edge j of q
@@ -1105,7 +1124,9 @@ def disjoint_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
                 x1[1, c] = p1[(i + 1) % 3, c]
                 x1[2, c] = q1[j, c]
                 x1[3, c] = q1[(j + 1) % 3, c]
-            best = min(best, toi_before(edge_edge, x0, x1, time_tol, dist_tol, min(best, t_max), work, counts))
+            limit = min(best, t_max)
+            if not query_excluded(edge_edge, x0, x1, dist_tol, limit, scratch):
+                best = min(best, searched_toi(edge_edge, x0, x1, time_tol, dist_tol, limit, work, counts))
             if best == 0.0:
                 return 0.0
     return best

@@ -7,6 +7,7 @@ import logging
 import os
 import platform
 import time
+from collections import deque
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, nullcontext
@@ -121,8 +122,25 @@ def _inputs(scene, trajectory, digests):
 
 def _chunks(n_items, workers, max_size=64):
     """(start, stop) chunks of range(n_items): about 8 per worker, at most max_size items."""
-    size = max(1, min(max_size, -(-n_items // (8 * workers))))
+    size = _chunk_size(n_items, workers, max_size, None)
     return [(s, min(s + size, n_items)) for s in range(0, n_items, size)]
+
+
+#: seconds of work a local chunk is made to last at least, once the first chunks have
+#: measured what an item costs: a kernel call costs a little on its own (buffers of the
+#: size of the meshes: about 0.3 ms with two 100k-triangle meshes), which short scans
+#: of big meshes would otherwise pay once per 1/8 of the work
+CHUNK_SECONDS = 0.02
+
+
+def _chunk_size(n_items, workers, max_size, seconds_per_item):
+    """Items in the next chunk of range(n_items): about 1/8 of a worker's share, or more
+    when items are cheap (CHUNK_SECONDS at seconds_per_item, once measured); at most
+    max_size."""
+    size = -(-n_items // (8 * workers))
+    if seconds_per_item is not None:
+        size = max(size, int(CHUNK_SECONDS / max(seconds_per_item, 1e-9)))
+    return max(1, min(max_size, size))
 
 
 class _Progress:
@@ -184,7 +202,8 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     range(n_items), in chunk order, computed in parallel.
 
     Locally in ``workers`` threads (the kernels release the GIL, so threads use every
-    core), at most 2 x workers chunks ahead of the one yielded, so a caller that
+    core), chunks sized by _chunk_size from the time the finished ones took, at most
+    2 x workers chunks ahead of the one yielded, so a caller that
     streams results out (--triangle-pairs to a file) holds a bounded number of them.
     With ``scheduler`` (an address) as tasks on a Dask distributed cluster, with the
     shared arrays sent to the workers once (all results are gathered first). The order
@@ -193,22 +212,35 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     if scheduler is not None:
         yield from _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
         return
-    chunks = _chunks(n_items, workers, max_size=max_size)
     ahead = 2 * workers
+    items_done, seconds_done = 0, 0.0
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        pending = {}
+        pending = deque()
+        start = 0
         try:
-            for i in range(len(chunks)):
-                for j in range(i, min(i + ahead, len(chunks))):
-                    if j not in pending:
-                        pending[j] = pool.submit(kernel, *shared, chunks[j][0], chunks[j][1], *extra)
-                result = pending.pop(i).result()
+            while start < n_items or pending:
+                while start < n_items and len(pending) < ahead:
+                    rate = seconds_done / items_done if items_done else None
+                    stop = min(n_items, start + _chunk_size(n_items, workers, max_size, rate))
+                    pending.append(((start, stop), pool.submit(_timed_call, kernel, shared, start, stop, extra)))
+                    start = stop
+                (chunk_start, chunk_stop), future = pending.popleft()
+                seconds, result = future.result()
+                items_done += chunk_stop - chunk_start
+                seconds_done += seconds
                 if progress is not None:
-                    progress(chunks[i][1] - chunks[i][0])
-                yield chunks[i], result
+                    progress(chunk_stop - chunk_start)
+                yield (chunk_start, chunk_stop), result
         finally:
-            for future in pending.values():
+            for _, future in pending:
                 future.cancel()
+
+
+def _timed_call(kernel, shared, start, stop, extra):
+    """(seconds, kernel(*shared, start, stop, *extra))."""
+    began = time.perf_counter()
+    result = kernel(*shared, start, stop, *extra)
+    return time.perf_counter() - began, result
 
 
 def _call_kernel(kernel, shared, start, stop, extra):

@@ -102,45 +102,52 @@ from .rows import (
 
 
 @njit(cache=True)
-def place_leaves(ps, rp, o, key, leaves, n_leaves, side, stamp, world):
-    """World positions, under pose rp (N, 3, 4), of the vertices of object o's triangles
-    in column ``side`` of leaves[:n_leaves] (its leaves of the leaf pairs) into its rows
-    of world (W, 3), for the rows whose stamp (W,) is not ``key`` yet (then set to
-    it): a pair's window reads only the triangles of its leaf pairs, so big meshes are
-    not transformed whole at every frame. The arithmetic of narrow.placed_triangle."""
-    mesh = ps.object_mesh[o]
-    v_start = ps.vert_start[mesh]
-    f_start = ps.face_start[mesh]
-    base = ps.world_start[o]
-    pose = rp[o]
-    for k in range(n_leaves):
-        node = leaves[k, side]
-        for i in range(ps.node_first[node], ps.node_first[node] + ps.node_count[node]):
-            face = f_start + ps.prim_ids[i]
-            for corner in range(3):
-                v = ps.faces[face, corner]
-                row = base + v
-                if stamp[row] == key:
-                    continue
-                x = ps.vertices[v_start + v, 0]
-                y = ps.vertices[v_start + v, 1]
-                z = ps.vertices[v_start + v, 2]
-                for c in range(3):
-                    world[row, c] = pose[c, 3] + pose[c, 0] * x + pose[c, 1] * y + pose[c, 2] * z
-                stamp[row] = key
+def place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, ready, stamp0, world0, stamp1, world1):
+    """World positions at frames k and k + 1 (poses rp0, rp1 (N, 3, 4)) of the vertices of
+    the triangles of the leaf pairs leaves[:n_leaves] of objects a and b, into their rows
+    of world0 and world1 (W, 3) whose stamps (W,) do not hold that frame yet (then set
+    to it; static objects: key -2 at every frame). A pair's window reads only the
+    triangles of its leaf pairs, so big meshes are not transformed whole at every
+    frame. An object's rows of both stamps are set to 'not computed' (-1) the first
+    time it is used (ready bool (N,)): most objects of a scan need no window. The
+    arithmetic of narrow.placed_triangle. One call per object pair: a call costs
+    reference counting for every array it is passed."""
+    for side in range(2):
+        o = a if side == 0 else b
+        base = ps.world_start[o]
+        if not ready[o]:
+            for row in range(base, ps.world_start[o + 1]):
+                stamp0[row] = -1
+                stamp1[row] = -1
+            ready[o] = True
+        key0 = -2 if static[o] else k
+        key1 = -2 if static[o] else k + 1
+        mesh = ps.object_mesh[o]
+        v_start = ps.vert_start[mesh]
+        f_start = ps.face_start[mesh]
+        for i in range(n_leaves):
+            node = leaves[i, side]
+            for j in range(ps.node_first[node], ps.node_first[node] + ps.node_count[node]):
+                face = f_start + ps.prim_ids[j]
+                for corner in range(3):
+                    v = ps.faces[face, corner]
+                    row = base + v
+                    if stamp0[row] != key0:
+                        _place(ps.vertices, v_start + v, rp0[o], world0, row)
+                        stamp0[row] = key0
+                    if stamp1[row] != key1:
+                        _place(ps.vertices, v_start + v, rp1[o], world1, row)
+                        stamp1[row] = key1
 
 
-@njit(cache=True)
-def _stamps_ready(ps, o, state):
-    """Set object o's rows of both stamp buffers of state (Step) to 'not computed' the first
-    time it is used: most objects of a scan need no window, and big meshes' rows are
-    not touched for them."""
-    if state.ready[o]:
-        return
-    for row in range(ps.world_start[o], ps.world_start[o + 1]):
-        state.stamp0[row] = -1
-        state.stamp1[row] = -1
-    state.ready[o] = True
+@njit(cache=True, inline="always")
+def _place(vertices, v, pose, world, row):
+    """world[row] = vertices[v] placed by pose (3, 4)."""
+    x = vertices[v, 0]
+    y = vertices[v, 1]
+    z = vertices[v, 2]
+    for c in range(3):
+        world[row, c] = pose[c, 3] + pose[c, 0] * x + pose[c, 1] * y + pose[c, 2] * z
 
 
 @njit(cache=True)
@@ -151,7 +158,7 @@ def _world_centre(c, rp):
             rp[2, 3] + rp[2, 0] * c[0] + rp[2, 1] * c[1] + rp[2, 2] * c[2])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # one call per object pair and step: no reference counting
 def spheres_may_meet(ps, rp0, rp1, motion, a, b, margin):
     """The swept bounding spheres of objects a and b overlap at some t in [0, 1]."""
     mesh_a = ps.object_mesh[a]
@@ -383,11 +390,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
         buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, leaves, n_leaves, buffers,
                                           counts)
         touch1 = hit_a >= 0
-    for side in range(2):  # static objects: one key for all frames
-        o = a if side == 0 else b
-        _stamps_ready(ps, o, state)
-        place_leaves(ps, rp0, o, -2 if static[o] else k, leaves, n_leaves, side, state.stamp0, state.world0)
-        place_leaves(ps, rp1, o, -2 if static[o] else k + 1, leaves, n_leaves, side, state.stamp1, state.world1)
+    place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.ready, state.stamp0, state.world0,
+                      state.stamp1, state.world1)
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
                                                        leaves, time_tol, dist_tol, np.bool_(not touch0),
                                                        np.bool_(not touch1), buffers.tri_pairs, counts)

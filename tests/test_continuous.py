@@ -453,8 +453,7 @@ def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypa
     assert len(discrete) > 100 and whole.sum() > 50 and (~whole).sum() > 10  # steps searched at one end or both
     for size in (1, 4, 64):
         with monkeypatch.context() as patch:
-            patch.setattr(pipeline, "_chunks", lambda n, w, max_size=64, size=size: [
-                (s, min(s + size, n)) for s in range(0, n, size)])
+            patch.setattr(pipeline, "_chunk_size", lambda *args, size=size: size)
             frame_pairs, ids, fractions = scan(True, None)
         assert frame_pairs == discrete
         np.testing.assert_array_equal(ids, known_ids)

@@ -152,8 +152,7 @@ def test_contacts_do_not_depend_on_workers_or_chunks(monkeypatch, mode):
     for workers, size in ((1, None), (2, None), (3, 5), (1, 1)):
         with monkeypatch.context() as patch:
             if size is not None:
-                patch.setattr(pipeline, "_chunks", lambda n, w, max_size=64, size=size: [
-                    (s, min(s + size, n)) for s in range(0, n, size)])
+                patch.setattr(pipeline, "_chunk_size", lambda *args, size=size: size)
             runs.append(collide.scan(fixture / "meshes", fixture / "traj.h5", mode=mode, workers=workers).contacts)
     for other in runs[1:]:
         for name, column in runs[0].items():

@@ -202,7 +202,7 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     range(n_items), in chunk order, computed in parallel.
 
     Locally in ``workers`` threads (the kernels release the GIL, so threads use every
-    core), chunks sized by _chunk_size from the time the finished ones took, at most
+    core; one worker runs them in this thread), chunks sized by _chunk_size from the time the finished ones took, at most
     2 x workers chunks ahead of the one yielded, so a caller that
     streams results out (--triangle-pairs to a file) holds a bounded number of them.
     With ``scheduler`` (an address) as tasks on a Dask distributed cluster, with the
@@ -212,9 +212,9 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     if scheduler is not None:
         yield from _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
         return
-    ahead = 2 * workers
+    ahead = 2 * workers if workers > 1 else 1
     items_done, seconds_done = 0, 0.0
-    with ThreadPoolExecutor(max_workers=workers) as pool:
+    with ThreadPoolExecutor(max_workers=workers) if workers > 1 else _InThisThread() as pool:
         pending = deque()
         start = 0
         try:
@@ -234,6 +234,31 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
         finally:
             for _, future in pending:
                 future.cancel()
+
+
+class _InThisThread:
+    """A ThreadPoolExecutor's submit for one worker: the call runs in this thread when its
+    result is asked for (no thread to start, no hand-over per chunk)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        return False
+
+    def submit(self, function, *args):
+        return _Deferred(function, args)
+
+
+class _Deferred(NamedTuple):
+    function: object
+    args: tuple
+
+    def result(self):
+        return self.function(*self.args)
+
+    def cancel(self):
+        return True
 
 
 def _timed_call(kernel, shared, start, stop, extra):

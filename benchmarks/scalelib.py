@@ -409,7 +409,7 @@ def _swept_levels_kernel():
     from collide.motion import MOTION_WIDTH, step_motions
     from collide.narrow import _swept_candidates
     from collide.rows import COUNT_WIDTH
-    from collide.swept import place_pair_leaves, spheres_may_meet
+    from collide.swept import place_pair_leaves, spheres_meet
 
     @njit(nogil=True)
     def levels(ps, poses, static, pairs, interpolation, dist_tol, level):
@@ -435,14 +435,13 @@ def _swept_levels_kernel():
             step_motions(interpolation, rp0, rp1, margin, motion)
             lo, hi = object_world_boxes(ps, rp0, rp1, motion, dist_tol, margin)
             candidates = sweep_and_prune(lo, hi)
+            meet = spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates)
             for c in range(candidates.shape[0]):
                 a = candidates[c, 0]
                 b = candidates[c, 1]
-                if not pair_selected(pairs, a, b):
+                if not pair_selected(pairs, a, b) or not meet[c]:
                     continue
                 pair_margin = margin[a] + margin[b] + dist_tol
-                if not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
-                    continue
                 kept += 1
                 if level < 2:
                     continue

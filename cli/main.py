@@ -48,7 +48,7 @@ import click  # noqa: E402
 # inside the commands that use them (``collide`` itself imports its engine lazily).
 import collide  # noqa: E402
 from collide import config  # noqa: E402
-from collide.errors import CollideError, Terminated, escape_text  # noqa: E402
+from collide.errors import CollideError, Terminated, escape_text, stop_request  # noqa: E402
 from collide.files import format_size, memory_limit, parse_size  # noqa: E402
 
 EXIT_FINDINGS = 1
@@ -750,13 +750,8 @@ def _run(argv):
         _error(f"collide: error: {' '.join(exc.format_message().split()).rstrip('.')}; "
                "expected arguments as described by --help")
         return EXIT_BAD_INPUT if exc.exit_code in (1, 2) else exc.exit_code
-    except Terminated as exc:
-        _error("collide: interrupted" if exc.signum == signal.SIGINT else
-               f"collide: terminated by {signal.Signals(exc.signum).name}")
-        return 128 + exc.signum
-    except (KeyboardInterrupt, click.exceptions.Abort):
-        _error("collide: interrupted")
-        return EXIT_INTERRUPTED
+    except (Terminated, KeyboardInterrupt, click.exceptions.Abort) as exc:
+        return _stopped(exc)
     except CollideError as exc:
         _error(f"collide: error: {exc}")
         return EXIT_BAD_INPUT
@@ -766,11 +761,23 @@ def _run(argv):
     except SystemExit as exc:
         return exc.code
     except Exception as exc:
+        if stop_request(exc) is not None:  # a signal while a kernel ran in this thread
+            return _stopped(stop_request(exc))
         if _state["verbosity"] > 0:
             traceback.print_exc()
         _error(f"collide: internal error: {type(exc).__name__}: {exc} (run with -v for a traceback)")
         return EXIT_INTERNAL
     return 0
+
+
+def _stopped(exc):
+    """Report a stop request (Ctrl-C: KeyboardInterrupt or click's Abort; Terminated);
+    returns the exit code, 128 + the signal number."""
+    if isinstance(exc, Terminated) and exc.signum != signal.SIGINT:
+        _error(f"collide: terminated by {signal.Signals(exc.signum).name}")
+        return 128 + exc.signum
+    _error("collide: interrupted")
+    return EXIT_INTERRUPTED
 
 
 def _silence_broken_pipe():

@@ -65,3 +65,17 @@ class Terminated(BaseException):
     def __init__(self, signum):
         super().__init__(f"terminated by signal {signum}")
         self.signum = signum
+
+
+def stop_request(error):
+    """The stop request (KeyboardInterrupt, Terminated) hidden in ``error``, or None.
+
+    A signal that arrives while a numba kernel runs in the main thread is handled by
+    Python as the kernel's result is converted back to Python objects; numba then
+    reports "returned a result with an exception set" (a SystemError) with the
+    handler's exception at the end of its chain of causes (each Python call made while
+    converting adds a SystemError). The stop request is what the run must unwind with."""
+    cause = error
+    while isinstance(cause, SystemError):
+        cause = cause.__cause__
+    return cause if isinstance(cause, (KeyboardInterrupt, Terminated)) else None

@@ -28,7 +28,7 @@ from .contacts import (
     sort_columns,
 )
 from .discrete import min_prim_ids, scan_frames, smallest_touching_pairs
-from .errors import InputError, UsageError
+from .errors import InputError, UsageError, stop_request
 from .filters import build_filters, describe
 from .jit import kernel_cache_dir, thread_limit
 from .jit_events import announce, compile_notice
@@ -202,9 +202,10 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     range(n_items), in chunk order, computed in parallel.
 
     Locally in ``workers`` threads (the kernels release the GIL, so threads use every
-    core; one worker runs them in this thread), chunks sized by _chunk_size from the time the finished ones took, at most
-    2 x workers chunks ahead of the one yielded, so a caller that
-    streams results out (--triangle-pairs to a file) holds a bounded number of them.
+    core; one worker runs them in this thread), chunks sized by _chunk_size from the
+    time the finished ones took, at most 2 x workers chunks ahead of the one yielded,
+    so a caller that streams results out (--triangle-pairs to a file) holds a bounded
+    number of them.
     With ``scheduler`` (an address) as tasks on a Dask distributed cluster, with the
     shared arrays sent to the workers once (all results are gathered first). The order
     does not depend on scheduling.
@@ -255,10 +256,11 @@ class _Deferred(NamedTuple):
     args: tuple
 
     def result(self):
-        return self.function(*self.args)
+        try:
+            return self.function(*self.args)
+        except SystemError as error:
+            raise stop_request(error) or error
 
-    def cancel(self):
-        return True
 
 
 def _timed_call(kernel, shared, start, stop, extra):

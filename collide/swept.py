@@ -74,6 +74,7 @@ from .filters import pair_selected
 from .jit import njit
 from .motion import (
     M_ETA,
+    M_THETA,
     MOTION_WIDTH,
     SCREW,
     pose_at,
@@ -101,7 +102,7 @@ from .rows import (
 )
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, ready, stamp0, world0, stamp1, world1):
     """World positions at frames k and k + 1 (poses rp0, rp1 (N, 3, 4)) of the vertices of
     the triangles of the leaf pairs leaves[:n_leaves] of objects a and b, into their rows
@@ -151,31 +152,48 @@ def _place(vertices, v, pose, world, row):
 
 
 @njit(cache=True)
-def _world_centre(c, rp):
-    """Body point c (3,) placed by pose rp (3, 4): a 3-tuple (no allocation per pair and step)."""
-    return (rp[0, 3] + rp[0, 0] * c[0] + rp[0, 1] * c[1] + rp[0, 2] * c[2],
-            rp[1, 3] + rp[1, 0] * c[0] + rp[1, 1] * c[1] + rp[1, 2] * c[2],
-            rp[2, 3] + rp[2, 0] * c[0] + rp[2, 1] * c[1] + rp[2, 2] * c[2])
+def _world_centre(centre, m, rp, o):
+    """Sphere centre (M, 3) of mesh m placed by pose rp (N, 3, 4) of object o: a 3-tuple
+    (indices, not array views: no allocation or reference counting per pair and step)."""
+    x = centre[m, 0]
+    y = centre[m, 1]
+    z = centre[m, 2]
+    return (rp[o, 0, 3] + rp[o, 0, 0] * x + rp[o, 0, 1] * y + rp[o, 0, 2] * z,
+            rp[o, 1, 3] + rp[o, 1, 0] * x + rp[o, 1, 1] * y + rp[o, 1, 2] * z,
+            rp[o, 2, 3] + rp[o, 2, 0] * x + rp[o, 2, 1] * y + rp[o, 2, 2] * z)
 
 
-@njit(cache=True, inline="always")  # one call per object pair and step: no reference counting
-def spheres_may_meet(ps, rp0, rp1, motion, a, b, margin):
-    """The swept bounding spheres of objects a and b overlap at some t in [0, 1]."""
-    mesh_a = ps.object_mesh[a]
-    mesh_b = ps.object_mesh[b]
-    ca0 = _world_centre(ps.centre[mesh_a], rp0[a])
-    ca1 = _world_centre(ps.centre[mesh_a], rp1[a])
-    cb0 = _world_centre(ps.centre[mesh_b], rp0[b])
-    cb1 = _world_centre(ps.centre[mesh_b], rp1[b])
-    s = (ca0[0] - cb0[0], ca0[1] - cb0[1], ca0[2] - cb0[2])
-    v = ((ca1[0] - ca0[0]) - (cb1[0] - cb0[0]), (ca1[1] - ca0[1]) - (cb1[1] - cb0[1]),
-         (ca1[2] - ca0[2]) - (cb1[2] - cb0[2]))
-    dev = sphere_deviation(motion[a], ca0) + sphere_deviation(motion[b], cb0)
-    if dev > 0.0:
-        dev += motion[a, M_ETA] + motion[b, M_ETA]
-    r = ps.sphere_radius[mesh_a] + ps.sphere_radius[mesh_b] + margin + dev
-    t_lo, t_hi = sphere_overlap_window(s, v, r)
-    return t_lo <= t_hi
+@njit(cache=True)
+def spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates):
+    """bool (C,): whether the swept bounding spheres of each candidate object pair (a, b)
+    (int64 (C, 2)) overlap at some t in [0, 1], widened by both objects' rounding
+    margins (N,) and dist_tol. One call per step: a call costs reference counting for
+    every array it is passed, which per pair would cost more than the test itself."""
+    centre = ps.centre
+    radius = ps.sphere_radius
+    object_mesh = ps.object_mesh
+    meet = np.empty(candidates.shape[0], np.bool_)
+    for c in range(candidates.shape[0]):
+        a = candidates[c, 0]
+        b = candidates[c, 1]
+        mesh_a = object_mesh[a]
+        mesh_b = object_mesh[b]
+        ca0 = _world_centre(centre, mesh_a, rp0, a)
+        ca1 = _world_centre(centre, mesh_a, rp1, a)
+        cb0 = _world_centre(centre, mesh_b, rp0, b)
+        cb1 = _world_centre(centre, mesh_b, rp1, b)
+        s = (ca0[0] - cb0[0], ca0[1] - cb0[1], ca0[2] - cb0[2])
+        v = ((ca1[0] - ca0[0]) - (cb1[0] - cb0[0]), (ca1[1] - ca0[1]) - (cb1[1] - cb0[1]),
+             (ca1[2] - ca0[2]) - (cb1[2] - cb0[2]))
+        dev = 0.0
+        if motion[a, M_THETA] != 0.0 or motion[b, M_THETA] != 0.0:  # screw motion: paths bend
+            dev = sphere_deviation(motion[a], ca0) + sphere_deviation(motion[b], cb0)
+            if dev > 0.0:
+                dev += motion[a, M_ETA] + motion[b, M_ETA]
+        r = radius[mesh_a] + radius[mesh_b] + margin[a] + margin[b] + dist_tol + dev
+        t_lo, t_hi = sphere_overlap_window(s, v, r)
+        meet[c] = t_lo <= t_hi
+    return meet
 
 
 class Buffers(NamedTuple):
@@ -323,7 +341,7 @@ def _descent_hit(ps, rp, f, a, b, static, frame, scratch, buffers, counts):
     return buffers, tri[0, 0], tri[0, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts):
     """_descent_hit from a swept descent's leaf pairs leaves[:n_leaves] instead of a
     descent of its own: they hold every leaf pair that overlaps at frame f, since boxes
@@ -361,18 +379,17 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
     t_last = 1: only the other end is searched). find_touch1: touch1 is not known
     yet; find it (state.frame), with a triangle pair (hit_a, hit_b) touching at frame
-    k + 1, (-1, -1) if none. state: Step. Returns (buffers, t_first, t_last, tri_a,
-    tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
+    k + 1, (-1, -1) if none. A pair touching at neither frame comes here only if its
+    swept spheres meet (spheres_meet). state: Step. Returns (buffers, t_first, t_last,
+    tri_a, tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
     always rigid."""
     pair_margin = margin[a] + margin[b] + dist_tol
-    if not (touch0 or touch1) and not spheres_may_meet(ps, rp0, rp1, motion, a, b, pair_margin):
-        return buffers, np.inf, -np.inf, -1, -1, -1, -1  # apart at the step's last frame too
     hit_a = hit_b = -1
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
-    n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre[mesh_a], rp0[a]), ps.sphere_radius[mesh_a],
-                     _world_centre(ps.centre[mesh_b], rp0[b]), ps.sphere_radius[mesh_b])
+    n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre, mesh_a, rp0, a), ps.sphere_radius[mesh_a],
+                     _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
     if n_sub > 1:
         if find_touch1:
             buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair, buffers,
@@ -486,6 +503,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         step_motions(interpolation, rp0, rp1, margin, motion)
         lo, hi = object_world_boxes(ps, rp0, rp1, motion, dist_tol, margin)
         candidates = sweep_and_prune(lo, hi)
+        meet = spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates)
         step_hits = n_hits
         if find_frames:
             object_margins(ps, rp1, rp1, state.frame.margin)
@@ -514,6 +532,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 touch1 = False
             if touch0 and touch1:  # the whole step
                 t_first, t_last, tri_a, tri_b = 0.0, 1.0, tris0[row0, 0], tris0[row0, 1]
+            elif not (touch0 or touch1) and not meet[c]:
+                continue  # apart all along, so at the step's last frame too
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
                     ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, np.bool_(touch0),

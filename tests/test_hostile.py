@@ -6,11 +6,14 @@ import errno
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import threading
 import warnings
 
 import h5py
+import numba
 import numpy as np
 import pytest
 from conftest import identity_quaternions, write_box, write_trajectory
@@ -18,8 +21,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import collide
-from collide import config, output
-from collide.errors import InputError, escape_text
+from collide import config, output, pipeline
+from collide.errors import InputError, Terminated, escape_text, stop_request
 from collide.files import parse_size
 from collide.load import load_scene, load_trajectory
 
@@ -612,3 +615,44 @@ def test_time_span_beyond_float64_is_refused(tmp_path):
         f["time"][...] = [-1e308, -1.0, 1.0, 1e308]
     with pytest.raises(InputError, match="time: spans -1e\\+308 to 1e\\+308, beyond float64"):
         load_trajectory(traj)
+
+
+
+@numba.njit(nogil=True)
+def _spin(n, x):
+    """About n dependent float operations (about 0.5 s for n = 3e8), then two arrays, as the
+    scan kernels return (boxing them calls Python)."""
+    for i in range(n):
+        x = x * 0.999999 + (i % 7) * 1e-9
+    out = np.full(1, x)
+    return out, out
+
+
+def _spin_with_a_signal(call):
+    """call() with SIGUSR1 sent to this process 0.05 s later, its handler raising Terminated."""
+    def stop(signum, frame):
+        raise Terminated(signum)
+
+    _spin(10, 0.5)  # compile first
+    previous = signal.signal(signal.SIGUSR1, stop)
+    timer = threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGUSR1))
+    try:
+        timer.start()
+        return call()
+    finally:
+        timer.cancel()
+        timer.join()
+        signal.signal(signal.SIGUSR1, previous)
+
+
+def test_a_signal_while_a_kernel_runs_in_this_thread_unwinds_as_a_stop_request():
+    """A stop signal that lands while a kernel runs in the main thread (one worker) is
+    handled as numba converts the result, which numba reports as a SystemError: the run
+    must unwind with the stop request itself (exit 128 + N), not an internal error."""
+    with pytest.raises(SystemError) as raw:  # what numba raises
+        _spin_with_a_signal(lambda: _spin(300_000_000, 0.25))
+    assert isinstance(stop_request(raw.value), Terminated)
+    with pytest.raises(Terminated) as caught:  # what a one-worker scan unwinds with
+        _spin_with_a_signal(lambda: pipeline._Deferred(_spin, (300_000_000, 0.25)).result())
+    assert caught.value.signum == signal.SIGUSR1
+    assert stop_request(SystemError("no cause")) is None and stop_request(ValueError()) is None

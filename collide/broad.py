@@ -477,9 +477,11 @@ def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, 
             side = held[top, _HELD_SIDE]
             own_a = node_box(lo, hi, na)
             own_b = node_box(lo, hi, nb)
-            box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(own_a, rp_a0, rp_a1, margin_a)
             box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(own_b, rp_b0, rp_b1, margin_b)
-            if (_apart(own_a, box_b) or _apart(own_b, box_a)) if rigid else _apart(box_a, box_b):
+            if rigid and _apart(own_a, box_b):
+                continue  # box_a not needed
+            box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(own_a, rp_a0, rp_a1, margin_a)
+            if _apart(own_b, box_a) if rigid else _apart(box_a, box_b):
                 continue
             leaf_a = count[na] > 0
             leaf_b = count[nb] > 0

@@ -17,7 +17,7 @@ from .jit import njit
 from .motion import M_ETA, corners_deviation, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
 from .rows import COUNT_TRIANGLE_PAIRS
-from .windows import swept_window_of
+from .windows import box_window, cross_window, largest_coordinate, moving_box
 
 
 @njit(cache=True)
@@ -142,31 +142,42 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
                       world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
     """Triangle pairs (tri_a, tri_b) of the leaf pairs whose moving boxes, widened by
     dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
-    moment of the step (windows.swept_window_of). Returns (out int64 (cap, 2), n, windows float64
+    moment of the step (windows.swept_window_of, its per-triangle parts computed once per
+    triangle and leaf pair). Returns (out int64 (cap, 2), n, windows float64
     (n, 2)): rows sorted by (tri_a, tri_b), windows their (t_lo, t_hi)."""
     n = np.int64(0)
     room = triangle_pair_count(leaves, n_leaves, count)
     windows = np.empty((max(room, 1), 2))
     out = with_room(out, n, room)
     eta = motion_a[M_ETA] + motion_b[M_ETA]
+    widest = 0
+    for k in range(n_leaves):
+        widest = max(widest, count[leaves[k, 1]])
+    side_b = np.empty((widest, _SIDE_WIDTH))  # a leaf of B's triangles (_set_side_row)
     for k in range(n_leaves):  # out and windows have room for every pair: not rebound in here
         la = leaves[k, 0]
         lb = leaves[k, 1]
+        for j in range(count[lb]):
+            _set_side_row(side_b, j, world0, world1, world_base_b, faces, face_base_b + prim_ids[first[lb] + j],
+                          motion_b)
         for ia in range(first[la], first[la] + count[la]):
             tri_a = prim_ids[ia]
             p0 = gathered_corners(world0, world_base_a, faces, face_base_a + tri_a)
             p1 = gathered_corners(world1, world_base_a, faces, face_base_a + tri_a)
+            p_box = moving_box(p0, p1)
             dev_p = corners_deviation(motion_a, p0)
-            for ib in range(first[lb], first[lb] + count[lb]):
-                tri_b = prim_ids[ib]
-                q0 = gathered_corners(world0, world_base_b, faces, face_base_b + tri_b)
-                q1 = gathered_corners(world1, world_base_b, faces, face_base_b + tri_b)
-                dev = dev_p + corners_deviation(motion_b, q0)
+            for j in range(count[lb]):
                 counts[COUNT_TRIANGLE_PAIRS] += 1
-                t_lo, t_hi = swept_window_of(p0, p1, q0, q1, dist_tol + dev + eta)
+                margin = dist_tol + (dev_p + side_b[j, _SIDE_DEV]) + eta
+                q_box = _side_box(side_b, j)
+                t_lo, t_hi = box_window(p_box, q_box, margin)
+                if t_lo > t_hi:
+                    continue
+                t_lo, t_hi = cross_window(p0, p1, _side_corners(side_b, j, 0), _side_corners(side_b, j, 9), margin,
+                                          largest_coordinate(p_box, q_box), t_lo, t_hi)
                 if t_lo <= t_hi:
                     out[n, 0] = tri_a
-                    out[n, 1] = tri_b
+                    out[n, 1] = prim_ids[first[lb] + j]
                     windows[n, 0] = t_lo
                     windows[n, 1] = t_hi
                     n += 1
@@ -181,6 +192,44 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
     reorder_rows(out, order)
     reorder_rows(windows, order)
     return out, n, windows
+
+
+#: columns of _swept_candidates' rows of B's triangles: corners at the step's start (0-8)
+#: and end (9-17), moving_box (18-32), deviation bound (33)
+_SIDE_BOX = 18
+_SIDE_DEV = 33
+_SIDE_WIDTH = 34
+
+
+@njit(cache=True)
+def _set_side_row(side, j, world0, world1, world_base, faces, face, motion):
+    """Row j of side: triangle ``face`` (global face row) at both ends of the step, its
+    moving_box and its deviation bound under motion."""
+    t0 = gathered_corners(world0, world_base, faces, face)
+    t1 = gathered_corners(world1, world_base, faces, face)
+    box = moving_box(t0, t1)
+    for i in range(9):
+        side[j, i] = t0[i]
+        side[j, 9 + i] = t1[i]
+    for i in range(15):
+        side[j, _SIDE_BOX + i] = box[i]
+    side[j, _SIDE_DEV] = corners_deviation(motion, t0)
+
+
+@njit(cache=True)
+def _side_corners(side, j, at):
+    """Corners (9-tuple) of row j of side from column ``at`` (0: step start, 9: end)."""
+    return (side[j, at], side[j, at + 1], side[j, at + 2], side[j, at + 3], side[j, at + 4], side[j, at + 5],
+            side[j, at + 6], side[j, at + 7], side[j, at + 8])
+
+
+@njit(cache=True)
+def _side_box(side, j):
+    """moving_box (15-tuple) of row j of side."""
+    b = _SIDE_BOX
+    return (side[j, b], side[j, b + 1], side[j, b + 2], side[j, b + 3], side[j, b + 4], side[j, b + 5],
+            side[j, b + 6], side[j, b + 7], side[j, b + 8], side[j, b + 9], side[j, b + 10], side[j, b + 11],
+            side[j, b + 12], side[j, b + 13], side[j, b + 14])
 
 
 @njit(cache=True)

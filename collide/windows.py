@@ -50,33 +50,72 @@ def swept_window_of(p0, p1, q0, q1, margin):
     the corners is convex in t); under screw motion within its deviation bound of it
     (motion.py), which the caller adds to margin. Two such blended extents overlap on an
     interval of t found from two linear functions. Any axis fixed over the step will do.
-    These: x, y, z (the corner boxes); both triangles' normals at the step's start,
-    which separate close, nearly parallel faces that boxes do not; and, for what is
-    left, the nine cross products of an edge of each at the step's start, which
+    These: x, y, z (the corner boxes, box_window); both triangles' normals at the step's
+    start, which separate close, nearly parallel faces that boxes do not; and, for what
+    is left, the nine cross products of an edge of each at the step's start, which
     separate edges passing close to each other (about two thirds of the pairs the
     other five axes leave on the benchmark scenes, each of which would cost a certified
-    search). The margin grows by a few ulps for rounding.
+    search); those two: cross_window. The margin grows by a few ulps for rounding.
     Triangles p0, p1 (p at the step's start and end), q0, q1: 9-tuples (corners_of).
     """
+    p_box = moving_box(p0, p1)
+    q_box = moving_box(q0, q1)
+    t_lo, t_hi = box_window(p_box, q_box, margin)
+    if t_lo > t_hi:
+        return t_lo, t_hi
+    return cross_window(p0, p1, q0, q1, margin, largest_coordinate(p_box, q_box), t_lo, t_hi)
+
+
+@njit(cache=True)
+def moving_box(t0, t1):
+    """The corner boxes of a triangle at both ends of a step (9-tuples t0, t1) as a
+    15-tuple: for axis c, (lo at t0, hi at t0, lo at t1, hi at t1) at 4 c to 4 c + 3,
+    and the largest |coordinate| of the four at 12 + c. Computed once per triangle, not
+    once per triangle pair."""
+    x = _axis_extents(t0, t1, 0)
+    y = _axis_extents(t0, t1, 1)
+    z = _axis_extents(t0, t1, 2)
+    return (x[0], x[1], x[2], x[3], y[0], y[1], y[2], y[3], z[0], z[1], z[2], z[3], x[4], y[4], z[4])
+
+
+@njit(cache=True)
+def _axis_extents(t0, t1, c):
+    lo0 = min(t0[c], t0[3 + c], t0[6 + c])
+    hi0 = max(t0[c], t0[3 + c], t0[6 + c])
+    lo1 = min(t1[c], t1[3 + c], t1[6 + c])
+    hi1 = max(t1[c], t1[3 + c], t1[6 + c])
+    return lo0, hi0, lo1, hi1, max(abs(lo0), abs(hi0), abs(lo1), abs(hi1))
+
+
+@njit(cache=True)
+def largest_coordinate(p_box, q_box):
+    """The largest |coordinate| of two moving_box tuples."""
+    return max(p_box[12], p_box[13], p_box[14], q_box[12], q_box[13], q_box[14])
+
+
+@njit(cache=True)
+def box_window(p_box, q_box, margin):
+    """swept_window_of along x, y and z, from the triangles' moving_box tuples: (t_lo,
+    t_hi), t_lo > t_hi when the boxes never come within margin of each other."""
     t_lo = 0.0
     t_hi = 1.0
-    largest = 0.0  # |coordinate| over all axes, for the normals' rounding margin
     for c in range(3):
-        p_lo0 = min(p0[c], p0[3 + c], p0[6 + c])
-        p_hi0 = max(p0[c], p0[3 + c], p0[6 + c])
-        p_lo1 = min(p1[c], p1[3 + c], p1[6 + c])
-        p_hi1 = max(p1[c], p1[3 + c], p1[6 + c])
-        q_lo0 = min(q0[c], q0[3 + c], q0[6 + c])
-        q_hi0 = max(q0[c], q0[3 + c], q0[6 + c])
-        q_lo1 = min(q1[c], q1[3 + c], q1[6 + c])
-        q_hi1 = max(q1[c], q1[3 + c], q1[6 + c])
-        size = max(abs(p_lo0), abs(p_hi0), abs(p_lo1), abs(p_hi1), abs(q_lo0), abs(q_hi0), abs(q_lo1), abs(q_hi1))
-        largest = max(largest, size)
-        m = margin + _WINDOW_ULPS * size
-        t_lo, t_hi = clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)  # p's top above q's bottom
-        t_lo, t_hi = clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)  # q's top above p's bottom
+        m = margin + _WINDOW_ULPS * max(p_box[12 + c], q_box[12 + c])
+        # p's top above q's bottom, q's top above p's bottom
+        t_lo, t_hi = clip_rising(p_box[4 * c + 1] - q_box[4 * c] + m, p_box[4 * c + 3] - q_box[4 * c + 2] + m,
+                                 t_lo, t_hi)
+        t_lo, t_hi = clip_rising(q_box[4 * c + 1] - p_box[4 * c] + m, q_box[4 * c + 3] - p_box[4 * c + 2] + m,
+                                 t_lo, t_hi)
         if t_lo > t_hi:
             return t_lo, t_hi
+    return t_lo, t_hi
+
+
+@njit(cache=True)
+def cross_window(p0, p1, q0, q1, margin, largest, t_lo, t_hi):
+    """[t_lo, t_hi] restricted by swept_window_of's tests along the triangles' normals and
+    the cross products of their edges at the step's start; largest: the largest
+    |coordinate| of the four corner sets (largest_coordinate), for rounding."""
     for triangle in (p0, q0):  # the normals
         t_lo, t_hi = _clip_along_cross(triangle, 0, 1, triangle, 0, 2, p0, p1, q0, q1, margin, largest, t_lo, t_hi)
         if t_lo > t_hi:

@@ -187,11 +187,28 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
     keys = np.empty(n, np.int64)
     for r in range(n):
         keys[r] = out[r, 0] * span + out[r, 1]
-    order = np.argsort(keys, kind="mergesort")
+    order = stable_order(keys)
     windows = windows[:n]
     reorder_rows(out, order)
     reorder_rows(windows, order)
     return out, n, windows
+
+
+@njit(cache=True)
+def stable_order(keys):
+    """int64 (n,): the stable ascending argsort of keys (n,) (np.argsort kind="mergesort"),
+    by insertion for the short arrays of most calls (no merge sort set-up)."""
+    n = keys.shape[0]
+    if n > 16:
+        return np.argsort(keys, kind="mergesort")
+    order = np.empty(n, np.int64)
+    for i in range(n):
+        j = i
+        while j > 0 and keys[order[j - 1]] > keys[i]:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = i
+    return order
 
 
 #: columns of _swept_candidates' rows of B's triangles: corners at the step's start (0-8)
@@ -255,13 +272,15 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     candidates, n, windows = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
                                                face_base_b, world0, world1, world_base_a, world_base_b,
                                                motion_a, motion_b, dist_tol, candidates, counts)
+    if n == 0:  # most calls: no scratch to allocate, nothing to sort
+        return candidates, np.inf, np.inf if find_first else -np.inf, -1, -1
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = ccd_work()
     t_first = np.inf
     best_a = -1
     best_b = -1
     # stable sorts (ties stay in (tri_a, tri_b) order) of contiguous copies: one compiled sort
-    by_start = np.argsort(windows[:, 0].copy(), kind="mergesort")
+    by_start = stable_order(windows[:, 0].copy())
     for i in range(n if find_first else 0):  # earliest contact
         k = by_start[i]
         if windows[k, 0] > t_first:
@@ -275,7 +294,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
             best_a = candidates[k, 0]
             best_b = candidates[k, 1]
     t_last = t_first if find_first else -np.inf  # the last contact is no earlier than the first
-    by_end = np.argsort(-windows[:, 1], kind="mergesort")
+    by_end = stable_order(-windows[:, 1])
     for i in range(n if find_last else 0):
         k = by_end[i]
         if (find_first and t_first == np.inf) or t_last == 1.0 or windows[k, 1] < t_last:

@@ -458,3 +458,16 @@ def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypa
         assert frame_pairs == discrete
         np.testing.assert_array_equal(ids, known_ids)
         np.testing.assert_array_equal(fractions, known_fractions)
+
+
+def test_stable_order_is_numpys_stable_argsort():
+    """The short-array insertion path and the merge sort path give numpy's stable order,
+    ties (many, with -0.0 == 0.0) in index order."""
+    from collide.narrow import stable_order
+    rng = np.random.default_rng(4)
+    for n in [0, 1, 2, 3, 5, 16, 17, 40]:
+        for _ in range(20):
+            floats = rng.choice([0.0, -0.0, 0.25, 0.5, 1.0, -1.0], size=n)
+            ints = rng.integers(0, 4, size=n)
+            for keys in (floats, ints):
+                assert np.array_equal(stable_order(keys), np.argsort(keys, kind="stable")), keys

@@ -7,6 +7,8 @@ job (predicates.py) and the certified CCD's (ccd.py).
 import numpy as np
 
 from .jit import njit
+from .motion import MOTION_WIDTH, points_at, screw_motion
+from .packed import to_world
 
 
 @njit(cache=True)
@@ -153,3 +155,41 @@ def contact_point(p, q):
                 best_gap = gap
                 best = 0.5 * (s + t)
     return best, best_gap
+
+
+@njit(cache=True, nogil=True)
+def contact_points(ps, block, rows, row0, row1, fractions, screw, object_a, object_b, tri_a, tri_b, point):
+    """Fill point (C, 3) float64 at the contact rows ``rows`` (int64 (R,)): contact_point of
+    triangles tri_a of object_a and tri_b of object_b (int (C,) each) at fraction
+    fractions[r] of the step between poses block[row0[i]] and block[row1[i]] (block
+    float64 (F, N, 3, 4); row1 unused when the fraction is 0), the objects moving by
+    screw motion (``screw``) or along their vertices' chords.
+
+    ps: packed.PackedScene. Placed as the scan places them (packed.to_world, then
+    motion.points_at), so the point is where the reported pair touches."""
+    motion = np.zeros(MOTION_WIDTH)
+    body = np.empty((3, 3))
+    ends = np.empty((2, 3, 3))  # the triangle at both frames
+    triangles = np.empty((2, 3, 3))  # a's, b's at the contact's moment
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        u = fractions[r]
+        for side in range(2):
+            o = object_a[r] if side == 0 else object_b[r]
+            mesh = ps.object_mesh[o]
+            face = ps.face_start[mesh] + (tri_a[r] if side == 0 else tri_b[r])
+            for c in range(3):
+                v = ps.vert_start[mesh] + ps.faces[face, c]
+                for d in range(3):
+                    body[c, d] = ps.vertices[v, d]
+            to_world(body, block[row0[i], o], triangles[side], 0)
+            if u > 0.0:
+                motion[:] = 0.0
+                if screw:
+                    screw_motion(block[row0[i], o], block[row1[i], o], 0.0, motion)
+                to_world(body, block[row0[i], o], ends[0], 0)
+                to_world(body, block[row1[i], o], ends[1], 0)
+                points_at(motion, ends[0], ends[1], u, triangles[side])
+        best, _ = contact_point(triangles[0], triangles[1])
+        for d in range(3):
+            point[r, d] = best[d]

@@ -18,8 +18,9 @@ import numpy as np
 from . import config
 from ._version import __version__
 from .bvh import builder_kernels
-from .closest import contact_point
+from .closest import contact_points
 from .contacts import (
+    CONTACT_COLUMNS,
     KIND_SWEPT,
     TRIANGLE_PAIR_COLUMNS,
     columns_from_rows,
@@ -34,9 +35,9 @@ from .jit import kernel_cache_dir, thread_limit
 from .jit_events import announce, compile_notice
 from .load import MEMORY_TRAJECTORY, input_files, load_scene
 from .meshcache import MeshCache
-from .motion import INTERPOLATIONS, MOTION_WIDTH, motion_summary, points_at, screw_motion
+from .motion import INTERPOLATIONS, motion_summary
 from .output import TrianglePairWriter, atomic_hdf5, check_output_path, write_result
-from .packed import pack_scene, world_vertices
+from .packed import pack_scene
 from .result import ScanResult
 from .rows import (
     COUNT_NAMES,
@@ -631,14 +632,16 @@ def check_motion(scene, ps, poses, frame_index, interpolation, warn_angle):
                     frames(worst.step), how, size[worst.obj], config.LINEAR_DEVIATION_WARN_REL)
 
 
-def _fill_contact_points(contacts, where, scene, poses, interpolation):
-    """World contact point of each contact's (tri_a, tri_b) at its first moment.
+def _fill_contact_points(contacts, where, ps, poses, interpolation):
+    """World contact point of each contact's (tri_a, tri_b) at its first moment
+    (closest.contact_points).
 
     where = (step, u): the moment is fraction u of the step from frame step to
     step+1 (u = 0: the frame itself), where objects move as ``interpolation`` says.
     poses: PoseSource, read for a block's worth of frames at a time.
     """
     steps, fractions, _ = where
+    point = np.zeros((steps.size, 3))
     order = np.argsort(steps, kind="stable")
     sorted_steps = steps[order]
     unique_steps = np.unique(steps)
@@ -647,40 +650,23 @@ def _fill_contact_points(contacts, where, scene, poses, interpolation):
         group_steps = unique_steps[group:group + per_group]
         frames = np.union1d(group_steps, np.minimum(group_steps + 1, poses.n_frames - 1))
         block, block_rows = poses.at(frames)
-        row_of = dict(zip(frames.tolist(), block_rows.tolist()))
         first = np.searchsorted(sorted_steps, group_steps[0], side="left")
         last = np.searchsorted(sorted_steps, group_steps[-1], side="right")
-        for k in order[first:last]:
-            step, u = int(steps[k]), float(fractions[k])
-            rp1 = block[row_of[step + 1]] if u > 0.0 else None
-            _fill_contact_point(contacts, k, scene, block[row_of[step]], rp1, u, interpolation)
-
-
-def _fill_contact_point(contacts, k, scene, rp0, rp1, u, interpolation):
-    """contacts' point of row k: where its triangle pair touches at fraction u of the step
-    from poses rp0 to rp1 (float64 (N, 3, 4); rp1 unused when u = 0)."""
-    motion = np.zeros(MOTION_WIDTH)
-    tris = []
-    for side, tri in (("object_a", "tri_a"), ("object_b", "tri_b")):
-        o = contacts[side][k]
-        mesh = scene.meshes[scene.object_mesh[o]]
-        corners = mesh.vertices[mesh.faces[contacts[tri][k]]]
-        position = world_vertices(corners, rp0[o])
-        if u > 0.0:
-            motion[:] = 0.0
-            if interpolation == "screw":
-                screw_motion(rp0[o], rp1[o], 0.0, motion)
-            points_at(motion, position.copy(), world_vertices(corners, rp1[o]), u, position)
-        tris.append(np.ascontiguousarray(position))
-    point, _ = contact_point(tris[0], tris[1])
-    contacts["point_x"][k], contacts["point_y"][k], contacts["point_z"][k] = point
+        rows = np.ascontiguousarray(order[first:last], dtype=np.int64)
+        row0 = block_rows[np.searchsorted(frames, steps[rows])]
+        row1 = block_rows[np.searchsorted(frames, np.minimum(steps[rows] + 1, poses.n_frames - 1))]
+        contact_points(ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0.astype(np.int64),
+                       row1.astype(np.int64), np.ascontiguousarray(fractions, dtype=np.float64),
+                       interpolation == "screw", contacts["object_a"], contacts["object_b"], contacts["tri_a"],
+                       contacts["tri_b"], point)
+    contacts["point_x"][:], contacts["point_y"][:], contacts["point_z"][:] = point.T
 
 
 def _compile_note(continuous):
     """Announce on stderr when numba really compiles (a machine's first run: about a
     minute), never on warm runs (collide.jit_events); "n of m" counts the top-level
     kernels that _compile_kernels prepares."""
-    return compile_notice([scan_frames, smallest_touching_pairs, contact_point]
+    return compile_notice([scan_frames, smallest_touching_pairs, contact_points]
                           + ([scan_intervals] if continuous else []))
 
 
@@ -749,7 +735,7 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
         check_motion(scene, ps, poses, index, interpolation, warn_angle)
     no_poses = np.zeros((1, poses.n_objects, 3, 4))  # a block's type, to compile or load the kernels with
     if compiling is not None:
-        _compile_setup_kernels()  # here, while the workers compile the big kernels
+        compile_contact_points(ps, no_poses)  # here, while the workers compile the big kernels
     _finish_warm_up(compiling)
     with _compile_note(continuous):
         _compile_kernels(ps, no_poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
@@ -778,15 +764,16 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
     smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
                             min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
-    _compile_setup_kernels()
+    compile_contact_points(ps, poses)
 
 
-def _compile_setup_kernels():
-    """The small kernels of the contact points (warm-up unit "setup" with the BVH builder
-    and the motion checks, which run before this)."""
-    triangle = np.ascontiguousarray(np.eye(3))
-    contact_point(triangle, triangle)
-    world_vertices(triangle, np.zeros((1, 1, 3, 4))[0, 0])
+def compile_contact_points(ps, poses):
+    """Compile (or load) the contact points' kernel (warm-up unit "setup" with the BVH
+    builder and the motion checks, which run before this) on no contacts."""
+    none = np.zeros(0, np.int64)
+    ids = np.zeros(0, CONTACT_COLUMNS["object_a"])
+    contact_points(ps, np.ascontiguousarray(poses, dtype=np.float64), none, none, none, np.zeros(0), True, ids, ids,
+                   ids, ids, np.zeros((0, 3)))
 
 
 def _check_options(mode, interpolation, workers):
@@ -862,7 +849,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
         stage("contact points")
         if not triangle_pairs:
             smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
-        _fill_contact_points(contacts, where, scene, poses, interpolation)
+        _fill_contact_points(contacts, where, ps, poses, interpolation)
         timings["scan_s"] = time.perf_counter() - start
         result = _result(scene, meshes, trajectory, mode, split, leaf_size, triangle_pairs, frames, workers,
                          scheduler, time_tol, interpolation, glob, filters, command, index, frame_time, contacts,

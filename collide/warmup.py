@@ -224,20 +224,14 @@ def _lbvh(ps, poses, static, pairs):
 def _motion(ps, poses, static, pairs):
     import numpy as np
 
-    from .motion import motion_summary, points_at
-    from .packed import world_vertices
+    from .motion import motion_summary
     motion_summary(poses, np.ascontiguousarray(ps.centre), np.ascontiguousarray(ps.sphere_radius),
                    np.empty((1, 2, 2)))
-    corners = world_vertices(np.eye(3), poses[0, 0])
-    points_at(np.zeros(12), corners.copy(), corners, 0.5, corners)
 
 
 def _contact_point(ps, poses, static, pairs):
-    import numpy as np
-
-    from .closest import contact_point
-    triangle = np.ascontiguousarray(np.eye(3))
-    contact_point(triangle, triangle)
+    from .pipeline import compile_contact_points
+    compile_contact_points(ps, poses)
 
 
 _KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_touching_pairs,

@@ -158,8 +158,10 @@ def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base
         la = leaves[k, 0]
         lb = leaves[k, 1]
         for j in range(count[lb]):
-            _set_side_row(side_b, j, world0, world1, world_base_b, faces, face_base_b + prim_ids[first[lb] + j],
-                          motion_b)
+            face = face_base_b + prim_ids[first[lb] + j]
+            q0 = gathered_corners(world0, world_base_b, faces, face)
+            _set_side_row(side_b, j, q0, gathered_corners(world1, world_base_b, faces, face),
+                          corners_deviation(motion_b, q0))
         for ia in range(first[la], first[la] + count[la]):
             tri_a = prim_ids[ia]
             p0 = gathered_corners(world0, world_base_a, faces, face_base_a + tri_a)
@@ -219,18 +221,17 @@ _SIDE_WIDTH = 34
 
 
 @njit(cache=True)
-def _set_side_row(side, j, world0, world1, world_base, faces, face, motion):
-    """Row j of side: triangle ``face`` (global face row) at both ends of the step, its
-    moving_box and its deviation bound under motion."""
-    t0 = gathered_corners(world0, world_base, faces, face)
-    t1 = gathered_corners(world1, world_base, faces, face)
+def _set_side_row(side, j, t0, t1, deviation):
+    """Row j of side: a triangle's corners t0, t1 (9-tuples) at both ends of the step,
+    its moving_box and its deviation bound (length units). One array argument: each
+    costs reference counting per call."""
     box = moving_box(t0, t1)
     for i in range(9):
         side[j, i] = t0[i]
         side[j, 9 + i] = t1[i]
     for i in range(15):
         side[j, _SIDE_BOX + i] = box[i]
-    side[j, _SIDE_DEV] = corners_deviation(motion, t0)
+    side[j, _SIDE_DEV] = deviation
 
 
 @njit(cache=True)

@@ -132,16 +132,21 @@ def _chunks(n_items, workers, max_size=64):
 #: size of the meshes: about 0.3 ms with two 100k-triangle meshes), which short scans
 #: of big meshes would otherwise pay once per 1/8 of the work
 CHUNK_SECONDS = 0.02
+#: the same with one worker, which has no share of the work to balance with another: a
+#: chunk then only paces the progress display (0.02 s chunks cost 3-8 % of a continuous
+#: scan of 100 bodies or of 10 000 frames)
+CHUNK_SECONDS_ONE_WORKER = 0.1
 
 
 def _chunk_size(n_items, workers, max_size, seconds_per_item):
     """Items in the next chunk of range(n_items): about 1/8 of a worker's share, or more
-    when items are cheap (CHUNK_SECONDS at seconds_per_item, once measured); at most
-    max_size."""
+    when items are cheap (CHUNK_SECONDS, or CHUNK_SECONDS_ONE_WORKER, at
+    seconds_per_item, once measured); at most max_size (None: no limit)."""
     size = -(-n_items // (8 * workers))
     if seconds_per_item is not None:
-        size = max(size, int(CHUNK_SECONDS / max(seconds_per_item, 1e-9)))
-    return max(1, min(max_size, size))
+        seconds = CHUNK_SECONDS if workers > 1 else CHUNK_SECONDS_ONE_WORKER
+        size = max(size, int(seconds / max(seconds_per_item, 1e-9)))
+    return max(1, size if max_size is None else min(max_size, size))
 
 
 class _Progress:
@@ -198,7 +203,7 @@ def _run_chunks(kernel, shared, extra, n_items, workers, progress, scheduler=Non
     return [result for _, result in _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler)]
 
 
-def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=None, max_size=64):
+def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=None, max_size=None):
     """Yield ((start, stop), kernel(*shared, start, stop, *extra)) for chunks of
     range(n_items), in chunk order, computed in parallel.
 
@@ -320,7 +325,7 @@ def _run_discrete(ps, poses, n_frames, offset, static, filters, pair_sink, worke
     hits = []
     for (start, stop), (chunk_hits, chunk_pairs, chunk_counts) in _chunk_results(
             scan_frames, (ps, poses, static, filters.kernel_filter(extra_ignore=static)), (collect, not collect),
-            n_frames, workers, progress, scheduler, max_size=config.PAIR_CHUNK_FRAMES if collect else 64):
+            n_frames, workers, progress, scheduler, max_size=config.PAIR_CHUNK_FRAMES if collect else None):
         hits.append(chunk_hits)
         counts.append(chunk_counts)
         if collect:

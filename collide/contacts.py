@@ -151,12 +151,9 @@ def intervals_from_steps(ids, fractions, hits, times):
     reach = _running_max_by_group(t1, np.flatnonzero(new_pair))   # latest end so far within each pair
     starts = new_pair.copy()
     starts[1:] |= t0[1:] > reach[:-1]
-    first = np.flatnonzero(starts)
-    interval = np.cumsum(starts) - 1
-    t_end = np.full(first.size, -np.inf)
-    np.maximum.at(t_end, interval, t1)
-    seen_at_frame = np.zeros(first.size, bool)
-    np.logical_or.at(seen_at_frame, interval, is_frame)
+    first = np.flatnonzero(starts)  # an interval's items are contiguous: reduce each run
+    t_end = np.maximum.reduceat(t1, first) if first.size else np.zeros(0)
+    seen_at_frame = np.logical_or.reduceat(is_frame, first) if first.size else np.zeros(0, bool)
     kind = np.where(seen_at_frame, KIND_FRAME, KIND_SWEPT)
     columns = _contact_columns(a[first], b[first], t0[first], t_end, kind, tri_a[first], tri_b[first], times)
     return columns, Where(step[first], u[first], is_frame[first])

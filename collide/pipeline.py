@@ -29,7 +29,7 @@ from .contacts import (
     sort_columns,
 )
 from .discrete import min_prim_ids, scan_frames, smallest_touching_pairs
-from .errors import InputError, UsageError, stop_request
+from .errors import InputError, UsageError
 from .filters import build_filters, describe
 from .jit import kernel_cache_dir, thread_limit
 from .jit_events import announce, compile_notice
@@ -208,10 +208,9 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     range(n_items), in chunk order, computed in parallel.
 
     Locally in ``workers`` threads (the kernels release the GIL, so threads use every
-    core; one worker runs them in this thread), chunks sized by _chunk_size from the
-    time the finished ones took, at most 2 x workers chunks ahead of the one yielded,
-    so a caller that streams results out (--triangle-pairs to a file) holds a bounded
-    number of them.
+    core), chunks sized by _chunk_size from the time the finished ones took, at most
+    2 x workers chunks ahead of the one yielded, so a caller that streams results out
+    (--triangle-pairs to a file) holds a bounded number of them.
     With ``scheduler`` (an address) as tasks on a Dask distributed cluster, with the
     shared arrays sent to the workers once (all results are gathered first). The order
     does not depend on scheduling.
@@ -219,9 +218,12 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     if scheduler is not None:
         yield from _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
         return
-    ahead = 2 * workers if workers > 1 else 1
+    ahead = 2 * workers
     items_done, seconds_done = 0, 0.0
-    with ThreadPoolExecutor(max_workers=workers) if workers > 1 else _InThisThread() as pool:
+    # kernels never run in this (the main) thread, even with one worker: Python runs
+    # signal handlers in the main thread only, and one that runs while numba converts a
+    # kernel's result back to Python objects comes out as a SystemError, or is lost
+    with ThreadPoolExecutor(max_workers=workers) as pool:
         pending = deque()
         start = 0
         try:
@@ -241,32 +243,6 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
         finally:
             for _, future in pending:
                 future.cancel()
-
-
-class _InThisThread:
-    """A ThreadPoolExecutor's submit for one worker: the call runs in this thread when its
-    result is asked for (no thread to start, no hand-over per chunk)."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc_info):
-        return False
-
-    def submit(self, function, *args):
-        return _Deferred(function, args)
-
-
-class _Deferred(NamedTuple):
-    function: object
-    args: tuple
-
-    def result(self):
-        try:
-            return self.function(*self.args)
-        except SystemError as error:
-            raise stop_request(error) or error
-
 
 
 def _timed_call(kernel, shared, start, stop, extra):

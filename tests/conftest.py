@@ -131,6 +131,14 @@ def _logging_restored():
         root.handlers[:], root.level = saved[3], saved[4]
 
 
+def default_sigint():
+    """preexec_fn of a command a test interrupts with SIGINT: Ctrl-C reaches it even where
+    the test run was started with SIGINT ignored (a background job of a non-interactive
+    shell), which the child would inherit, and which collide rightly keeps ignoring."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def signal_when_scanning(proc, folder, signum, timeout=120):
     """Send ``signum`` to the scan ``proc`` once it writes its output's temporary file in
     ``folder`` (inputs loaded, kernels ready: the scan itself has begun). False if the

@@ -9,7 +9,7 @@ import sys
 import h5py
 import numpy as np
 import pytest
-from conftest import run_cli, signal_when_scanning, write_box
+from conftest import default_sigint, run_cli, signal_when_scanning, write_box
 
 import collide
 from collide import config
@@ -162,7 +162,7 @@ def test_interrupt_exits_130_and_leaves_no_file(tmp_path):
     out = tmp_path / "c.h5"
     proc = subprocess.Popen([sys.executable, "-m", "collide_cli.main", "scan", str(meshes), str(traj),
                              "-o", str(out), "--mode", "discrete", "--workers", "1", "--triangle-pairs"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     assert signal_when_scanning(proc, tmp_path, signal.SIGINT), proc.communicate()[1]
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr

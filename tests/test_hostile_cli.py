@@ -15,7 +15,14 @@ import h5py
 import numpy as np
 import pytest
 import trimesh
-from conftest import identity_quaternions, run_cli, signal_when_scanning, write_box, write_trajectory
+from conftest import (
+    default_sigint,
+    identity_quaternions,
+    run_cli,
+    signal_when_scanning,
+    write_box,
+    write_trajectory,
+)
 
 import collide
 
@@ -231,7 +238,7 @@ def test_signal_during_scan_exits_cleanly_and_keeps_the_old_output(slow_scene, t
     out.write_bytes(b"old result")
     proc = subprocess.Popen([sys.executable, "-m", "collide_cli.main", "scan", str(meshes), str(traj), "-o",
                              str(out), "--mode", "discrete", "--workers", "1", "--triangle-pairs"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     assert signal_when_scanning(proc, tmp_path, signum), proc.communicate()[1]
     _, stderr = proc.communicate(timeout=120)
     assert proc.returncode == code, stderr
@@ -265,7 +272,7 @@ def test_ctrl_c_while_starting_up_is_quiet(scanned, delay):
     slow imports: numpy, h5py, numba) until the command ends: exit 130, one line."""
     _, traj, _ = scanned
     proc = subprocess.Popen([sys.executable, "-m", "collide_cli.main", "validate", str(traj)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
     while signal.SIGTERM not in _caught_signals(proc.pid):  # collide's handlers are in place
         if proc.poll() is not None:
             pytest.fail("collide ran to its end without installing its stop-signal handlers")

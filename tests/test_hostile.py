@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import collide
-from collide import config, output
+from collide import config, output, pipeline
 from collide.errors import InputError, Terminated, escape_text, stop_request
 from collide.files import parse_size
 from collide.load import load_scene, load_trajectory
@@ -628,21 +628,21 @@ def _spin(n, x):
     return out, out
 
 
-def _spin_with_a_signal(call):
-    """call() with SIGUSR1 sent to this process 0.05 s later, its handler raising Terminated."""
+def _spin_with_a_signal(call, signum=signal.SIGUSR1):
+    """call() with signum sent to this process 0.05 s later, its handler raising Terminated."""
     def stop(signum, frame):
         raise Terminated(signum)
 
     _spin(10, 0.5)  # compile first
-    previous = signal.signal(signal.SIGUSR1, stop)
-    timer = threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGUSR1))
+    previous = signal.signal(signum, stop)
+    timer = threading.Timer(0.05, os.kill, (os.getpid(), signum))
     try:
         timer.start()
         return call()
     finally:
         timer.cancel()
         timer.join()
-        signal.signal(signal.SIGUSR1, previous)
+        signal.signal(signum, previous)
 
 
 def test_a_signal_while_a_kernel_runs_in_the_main_thread_is_found_in_numbas_error():
@@ -656,3 +656,13 @@ def test_a_signal_while_a_kernel_runs_in_the_main_thread_is_found_in_numbas_erro
     assert isinstance(stop_request(raw.value), Terminated)
     assert stop_request(raw.value).signum == signal.SIGUSR1
     assert stop_request(SystemError("no cause")) is None and stop_request(ValueError()) is None
+
+
+def test_one_worker_chunks_hold_stop_signals_until_the_kernel_returns():
+    """A one-worker scan runs its kernels in the main thread with stop signals held back
+    (pipeline._Deferred): SIGTERM in mid-kernel comes out after the kernel returns, as
+    the handler's own exception, not wrapped in numba's SystemError."""
+    with pytest.raises(Terminated) as caught:
+        _spin_with_a_signal(lambda: pipeline._Deferred(_spin, (300_000_000, 0.25)).result(), signal.SIGTERM)
+    assert caught.value.signum == signal.SIGTERM
+    assert caught.value.__context__ is None and caught.value.__cause__ is None

@@ -407,7 +407,7 @@ def _swept_levels_kernel():
     from collide.discrete import object_margins, object_world_boxes, pair_leaves, pair_scratch
     from collide.filters import pair_selected
     from collide.motion import MOTION_WIDTH, step_motions
-    from collide.narrow import _swept_candidates
+    from collide.narrow import _swept_candidates, new_stamps
     from collide.rows import COUNT_WIDTH
     from collide.swept import place_pair_leaves, spheres_meet
 
@@ -417,9 +417,8 @@ def _swept_levels_kernel():
         n_world = ps.world_start[n_objects]
         world0 = np.empty((n_world, 3))
         world1 = np.empty((n_world, 3))
-        stamp0 = np.empty(n_world, np.int64)
-        stamp1 = np.empty(n_world, np.int64)
-        ready = np.zeros(n_objects, np.bool_)
+        stamp0 = new_stamps(n_world)
+        stamp1 = new_stamps(n_world)
         scratch = pair_scratch()
         stack = np.empty((64, 2), np.int64)
         leaves = np.empty((256, 2), np.int64)
@@ -449,8 +448,7 @@ def _swept_levels_kernel():
                                                       stack, leaves, counts)
                 if level < 3 or n_leaves == 0:
                     continue
-                place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, ready, stamp0, world0, stamp1,
-                                  world1)
+                place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, stamp0, world0, stamp1, world1)
                 cand, n, _ = _swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
                                             world0, world1, ps.world_start[a], ps.world_start[b], motion[a],

@@ -43,7 +43,14 @@ from .broad import (
 from .filters import pair_selected
 from .jit import njit
 from .motion import MOTION_WIDTH, swept_box
-from .narrow import Placed, append_row, intersecting_triangles, placed_triangle, triangle_boxes_overlap
+from .narrow import (
+    Placed,
+    append_row,
+    intersecting_triangles,
+    new_stamps,
+    placed_triangle,
+    triangle_boxes_overlap,
+)
 from .predicates import triangles_intersect
 from .rows import (
     COUNT_NODE_PAIRS,
@@ -243,7 +250,7 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
     """
     n_objects = poses.shape[1]
     world = np.empty((ps.world_start[n_objects], 3))
-    stamp = np.full(ps.world_start[n_objects], -1, np.int64)  # the key each world row was computed for
+    stamp = new_stamps(ps.world_start[n_objects])  # the key each world row was computed for
     margin = np.empty(n_objects)
     counts = np.zeros(COUNT_WIDTH, np.int64)
     hits = np.empty((16, HIT_WIDTH), np.int64)
@@ -394,7 +401,7 @@ def smallest_touching_pairs(ps, poses, static, frame, wanted, min_prim):
     n_objects = poses.shape[1]
     rp = poses[frame]
     world = np.empty((ps.world_start[n_objects], 3))
-    stamp = np.full(ps.world_start[n_objects], -1, np.int64)
+    stamp = new_stamps(ps.world_start[n_objects])
     margin = np.empty(n_objects)
     object_margins(ps, rp, rp, margin)
     stack = np.empty((64, 2), np.int64)

@@ -5,7 +5,9 @@ holding every object's vertices at the current pose; object o's vertex v is
 row ``world_start[o] + v``. Faces are mesh-local vertex indices. The discrete
 tests fill that buffer lazily (``Placed``): a vertex is transformed the first
 time a tested triangle needs it at a frame, so a frame costs what its tested
-triangles need, not the size of the meshes.
+triangles need, not the size of the meshes. The stamps that say which rows hold
+which frame (``new_stamps``) are themselves set lazily, in blocks of rows, so a scan
+of big meshes touching in a small region writes little of either buffer.
 """
 from typing import NamedTuple
 
@@ -41,13 +43,44 @@ def gathered_corners(world, world_base, faces, face):
             world[r2, 0], world[r2, 1], world[r2, 2])
 
 
+STAMP_BLOCK_BITS = 10
+STAMP_BLOCK = 1 << STAMP_BLOCK_BITS  #: rows of a world buffer whose stamps are set together, on first use
+
+
+@njit(cache=True)
+def new_stamps(n_rows):
+    """Stamps for a world buffer of n_rows rows: the key (a frame) each row was last
+    computed for, set lazily. int64 (B * (STAMP_BLOCK + 1),) for B = ceil(n_rows /
+    STAMP_BLOCK) blocks: the rows' stamps (not yet set), then one flag per block, block
+    b's at [-1 - b], 0 until stamp_is sets the block's stamps to -1 ('not computed').
+    Only the blocks a scan asks about are written: fresh memory costs a page fault per
+    page touched, and a few triangles of a big mesh touch few blocks."""
+    n_blocks = (n_rows + STAMP_BLOCK - 1) // STAMP_BLOCK
+    stamps = np.empty(n_blocks * (STAMP_BLOCK + 1), np.int64)
+    stamps[n_blocks * STAMP_BLOCK:] = 0
+    return stamps
+
+
+@njit(cache=True, inline="always")
+def stamp_is(stamps, row, key):
+    """Whether world row ``row`` holds its value for ``key`` (stamps: new_stamps; keys
+    are never -1). Sets the row's block of stamps to -1 first if nothing set it yet."""
+    block = row >> STAMP_BLOCK_BITS  # row // STAMP_BLOCK
+    flag = stamps.shape[0] - 1 - block
+    if stamps[flag] == 0:
+        for r in range(block * STAMP_BLOCK, (block + 1) * STAMP_BLOCK):
+            stamps[r] = -1
+        stamps[flag] = 1
+    return stamps[row] == key
+
+
 class Placed(NamedTuple):
     """One object's triangles at one pose, transformed on demand (discrete tests)."""
     body: np.ndarray    #: float64 (V, 3) the mesh's body vertices
     faces: np.ndarray   #: int64 (F, 3) the mesh's faces (mesh-local vertex indices)
     pose: np.ndarray    #: float64 (3, 4) [R | p]
     world: np.ndarray   #: float64 (W, 3) the shared world buffer
-    stamp: np.ndarray   #: int64 (W,) for each world row, the key its value was computed for
+    stamp: np.ndarray   #: int64 the world buffer's stamps (new_stamps)
     base: int           #: the object's first row in world
     key: int            #: this pose's key (a frame; static objects: one key for all frames)
 
@@ -60,7 +93,7 @@ def placed_triangle(obj, face, out):
     for r in range(3):
         v = obj.faces[face, r]
         row = obj.base + v
-        if obj.stamp[row] != obj.key:
+        if not stamp_is(obj.stamp, row, obj.key):
             x = obj.body[v, 0]
             y = obj.body[v, 1]
             z = obj.body[v, 2]

@@ -83,7 +83,7 @@ from .motion import (
     step_motions,
     substeps,
 )
-from .narrow import append_row, intersecting_triangles, swept_contact_window
+from .narrow import append_row, intersecting_triangles, new_stamps, stamp_is, swept_contact_window
 from .packed import to_world
 from .rows import (
     COUNT_NODE_PAIRS,
@@ -103,24 +103,17 @@ from .rows import (
 
 
 @njit(cache=True, inline="always")
-def place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, ready, stamp0, world0, stamp1, world1):
+def place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, stamp0, world0, stamp1, world1):
     """World positions at frames k and k + 1 (poses rp0, rp1 (N, 3, 4)) of the vertices of
     the triangles of the leaf pairs leaves[:n_leaves] of objects a and b, into their rows
-    of world0 and world1 (W, 3) whose stamps (W,) do not hold that frame yet (then set
-    to it; static objects: key -2 at every frame). A pair's window reads only the
-    triangles of its leaf pairs, so big meshes are not transformed whole at every
-    frame. An object's rows of both stamps are set to 'not computed' (-1) the first
-    time it is used (ready bool (N,)): most objects of a scan need no window. The
-    arithmetic of narrow.placed_triangle. One call per object pair: a call costs
-    reference counting for every array it is passed."""
+    of world0 and world1 (W, 3) whose stamps (narrow.new_stamps) do not hold that frame
+    yet (then set to it; static objects: key -2 at every frame). A pair's window reads
+    only the triangles of its leaf pairs, so big meshes are not transformed whole at
+    every frame. The arithmetic of narrow.placed_triangle. One call per object pair: a
+    call costs reference counting for every array it is passed."""
     for side in range(2):
         o = a if side == 0 else b
         base = ps.world_start[o]
-        if not ready[o]:
-            for row in range(base, ps.world_start[o + 1]):
-                stamp0[row] = -1
-                stamp1[row] = -1
-            ready[o] = True
         key0 = -2 if static[o] else k
         key1 = -2 if static[o] else k + 1
         mesh = ps.object_mesh[o]
@@ -133,10 +126,10 @@ def place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, ready, st
                 for corner in range(3):
                     v = ps.faces[face, corner]
                     row = base + v
-                    if stamp0[row] != key0:
+                    if not stamp_is(stamp0, row, key0):
                         _place(ps.vertices, v_start + v, rp0[o], world0, row)
                         stamp0[row] = key0
-                    if stamp1[row] != key1:
+                    if not stamp_is(stamp1, row, key1):
                         _place(ps.vertices, v_start + v, rp1[o], world1, row)
                         stamp1[row] = key1
 
@@ -314,7 +307,7 @@ class FrameTests(NamedTuple):
     """Buffers of the frame tests scan_intervals runs itself (``find_frames``), at each
     step's last frame (N objects, W world vertex rows)."""
     world: np.ndarray   #: float64 (W, 3) world vertices, filled lazily (discrete._placed)
-    stamp: np.ndarray   #: int64 (W,) the frame each world row was computed for
+    stamp: np.ndarray   #: int64 the frame each world row was computed for (narrow.new_stamps)
     margin: np.ndarray  #: float64 (N,) rounding margins at the frame (discrete.object_margins)
     still: np.ndarray   #: float64 (N, MOTION_WIDTH) zero motion rows
     p: np.ndarray       #: float64 (3, 3) triangle scratch
@@ -323,7 +316,7 @@ class FrameTests(NamedTuple):
 
 @njit(cache=True)
 def _frame_tests(n_objects, n_world):
-    return FrameTests(np.empty((n_world, 3)), np.full(n_world, -1, np.int64), np.empty(n_objects),
+    return FrameTests(np.empty((n_world, 3)), new_stamps(n_world), np.empty(n_objects),
                       np.zeros((n_objects, MOTION_WIDTH)), np.empty((3, 3)), np.empty((3, 3)))
 
 
@@ -407,8 +400,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
         buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, leaves, n_leaves, buffers,
                                           counts)
         touch1 = hit_a >= 0
-    place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.ready, state.stamp0, state.world0,
-                      state.stamp1, state.world1)
+    place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.stamp0, state.world0, state.stamp1,
+                      state.world1)
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
                                                        leaves, time_tol, dist_tol, np.bool_(not touch0),
                                                        np.bool_(not touch1), buffers.tri_pairs, counts)
@@ -447,9 +440,8 @@ class Step(NamedTuple):
     """Fixed-size buffers of one scan_intervals call (N objects, W world vertex rows)."""
     world0: np.ndarray  #: float64 (W, 3) world vertices at the step's start (rows of objects in use)
     world1: np.ndarray  #: float64 (W, 3) and end
-    stamp0: np.ndarray  #: int64 (W,) the frame (-2: static) each row of world0 was computed for
-    stamp1: np.ndarray  #: int64 (W,) (rows of objects not ready: not set)
-    ready: np.ndarray   #: bool (N,) the object's rows of stamp0 and stamp1 are set
+    stamp0: np.ndarray  #: int64 the frame (-2: static) each row of world0 was computed for (narrow.new_stamps)
+    stamp1: np.ndarray  #: int64 and of world1
     sub: SubStep
     pair: object        #: discrete.PairScratch
     frame: FrameTests
@@ -477,8 +469,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
-    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), np.empty(n_world, np.int64),
-                 np.empty(n_world, np.int64), np.zeros(n_objects, np.bool_), _sub_step_buffers(n_objects, n_world),
+    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), new_stamps(n_world), new_stamps(n_world),
+                 _sub_step_buffers(n_objects, n_world),
                  pair_scratch(),
                  _frame_tests(n_objects, n_world if find_frames else 0))
     buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64))
@@ -560,6 +552,5 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         keys0, tris0 = keys1, tris1
         # frame k + 1 ends this step and starts the next: its world vertices move over
         # (swapping the buffers and their stamps), so no frame is transformed twice
-        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.ready, state.sub, state.pair,
-                     state.frame)
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame)
     return hits[:n_hits].copy(), ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -211,6 +211,29 @@ def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
                 assert tuple(got) == expected, (leaf_size, f, a, b)
 
 
+@pytest.mark.parametrize("n_rows", [1, 1023, 1024, 1025, 5000])
+def test_lazy_stamps_answer_like_stamps_set_to_minus_one_up_front(n_rows):
+    """narrow.new_stamps / stamp_is (the world buffers' stamps, set a block at a time on
+    first use) against a plain array filled with -1 ('not computed') at the start:
+    random questions and writes, and only the blocks of rows asked about are set."""
+    from collide.narrow import STAMP_BLOCK, new_stamps, stamp_is
+    rng = np.random.default_rng(n_rows)
+    stamps, reference = new_stamps(n_rows), np.full(n_rows, -1, np.int64)
+    asked = set()
+    for _ in range(400):
+        row, key = int(rng.integers(n_rows)), int(rng.choice([-2, 0, 1, 7]))
+        assert stamp_is(stamps, np.int64(row), np.int64(key)) == (reference[row] == key)
+        asked.add(row // STAMP_BLOCK)
+        if rng.random() < 0.5:
+            stamps[row] = reference[row] = key
+    n_blocks = -(-n_rows // STAMP_BLOCK)
+    flags = stamps[n_blocks * STAMP_BLOCK:][::-1]
+    assert flags.size == n_blocks and set(np.flatnonzero(flags).tolist()) == asked
+    for block in asked:  # every row of a set block answers as the reference does
+        rows = np.arange(block * STAMP_BLOCK, min((block + 1) * STAMP_BLOCK, n_rows))
+        assert np.array_equal(stamps[rows], reference[rows])
+
+
 def collide_rotation(q):
     """Rotation matrix of the unit quaternion q = (w, x, y, z)."""
     w, x, y, z = q

@@ -475,6 +475,8 @@ def _check_positions(src, position, frames, dataset):
     """Refuse positions (S, N, 3) at file frames ``frames`` (S,) farther than
     config.MAX_COORDINATE from the origin (world coordinates that large overflow the
     exact tests)."""
+    if not position.size or np.abs(position).max() <= config.MAX_COORDINATE / 2:  # then |p| <= 0.87 max
+        return
     magnitude = lengths(position)
     if magnitude.size and not magnitude.max() <= config.MAX_COORDINATE:
         t, o = np.unravel_index(int(np.argmax(magnitude)), magnitude.shape)
@@ -531,6 +533,21 @@ def _poses_from_quaternions(src, datasets, frames, order, out):
     return float(off.max(initial=0.0))
 
 
+def rotation_errors(matrix):
+    """(max |R^T R - I| over the entries, det R), float64 (...,) each, of the 3 x 3
+    blocks R = matrix[..., :3, :3] (matrix (..., >=3, >=3)): element-wise products of
+    the columns, a few times faster than einsum and linalg.det on many small matrices."""
+    r = [[matrix[..., k, i] for i in range(3)] for k in range(3)]  # r[row][column]
+    error = np.zeros(matrix.shape[:-2])
+    for i in range(3):
+        for j in range(i, 3):  # R^T R is symmetric: its upper triangle holds every entry
+            entry = r[0][i] * r[0][j] + r[1][i] * r[1][j] + r[2][i] * r[2][j]
+            np.maximum(error, np.abs(entry - 1.0 if i == j else entry), out=error)
+    det = (r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+           + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]))
+    return error, det
+
+
 def _poses_from_matrices(src, datasets, frames, order, out):
     """Fill ``out`` (S, N, 3, 4) with the rigid transforms of poses/matrix at file frames
     ``frames`` (S,), checked; returns 0.0 (no normalisation)."""
@@ -541,10 +558,7 @@ def _poses_from_matrices(src, datasets, frames, order, out):
         t, o = np.unravel_index(int(np.argmax(last_row)), last_row.shape)
         raise InputError(src.path, f"last row is {matrix[t, o, 3].tolist()} at frame {frames[t]}, object {o}",
                          "last row 0 0 0 1", dataset="poses/matrix")
-    rotation = matrix[..., :3, :3]
-    gram = np.einsum("...ki,...kj->...ij", rotation, rotation)
-    error = np.abs(gram - np.eye(3)).max(axis=(-2, -1))
-    det = np.linalg.det(rotation) if rotation.size else np.ones(rotation.shape[:-2])
+    error, det = rotation_errors(matrix)
     bad = ~(error <= config.ROTATION_ORTHONORMAL_TOL) | ~(det > 0)
     if bad.any():
         t, o = np.argwhere(bad)[0]

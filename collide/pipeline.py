@@ -773,8 +773,9 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True,
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
+    no_nodes = np.zeros(0, np.int64)  # the kernels' types, not the scene's (tens of ms on big meshes)
     smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
-                            min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
+                            min_prim_ids(no_nodes, no_nodes, no_nodes))
     compile_contact_points(ps, poses)
 
 

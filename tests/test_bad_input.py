@@ -43,6 +43,8 @@ def setup_case(tmp, case):
     q_nan[2, 0, 1] = np.nan
     scaled = np.tile(np.eye(4), (N, 1, 1, 1))
     scaled[:, :, 0, 0] = 2.0
+    reflected = np.tile(np.eye(4), (N, 1, 1, 1))
+    reflected[2, 0, 1, 1] = -1.0  # orthonormal, det -1
     last_row = np.tile(np.eye(4), (N, 1, 1, 1))
     last_row[1, 0, 3, 0] = 0.5
     actions = {
@@ -66,6 +68,7 @@ def setup_case(tmp, case):
         "non-unit quaternion": lambda: edit(traj, replace("poses/orientation", q_bad,
                                                           {"quaternion_order": "wxyz"})),
         "non-rigid matrix": lambda: write_trajectory(traj, np.arange(N) * 0.1, ["b"], matrix=scaled),
+        "reflecting matrix": lambda: write_trajectory(traj, np.arange(N) * 0.1, ["b"], matrix=reflected),
         "matrix last row": lambda: write_trajectory(traj, np.arange(N) * 0.1, ["b"], matrix=last_row),
         "unknown name": lambda: write_trajectory(traj, np.arange(N) * 0.1, ["zzz"], *good_poses()),
         "duplicate names": lambda: write_trajectory(traj, np.arange(N) * 0.1, ["b", "b"],
@@ -93,8 +96,8 @@ def setup_case(tmp, case):
 CASES = ["missing trajectory", "not hdf5", "truncated hdf5", "missing time", "time 2-D", "time NaN",
          "time not increasing", "time empty", "missing names", "missing poses", "position wrong shape",
          "position NaN", "orientation NaN", "missing quaternion_order", "unknown quaternion_order",
-         "non-unit quaternion", "non-rigid matrix", "matrix last row", "unknown name", "duplicate names",
-         "mesh list length", "missing mesh folder", "empty mesh folder", "unreadable mesh",
+         "non-unit quaternion", "non-rigid matrix", "reflecting matrix", "matrix last row", "unknown name",
+         "duplicate names", "mesh list length", "missing mesh folder", "empty mesh folder", "unreadable mesh",
          "mesh without triangles", "mesh with NaN vertex", "duplicate stems"]
 
 

@@ -172,3 +172,23 @@ def test_memory_does_not_grow_with_the_number_of_frames(tmp_path, monkeypatch, m
     grown = peaks[20000] - peaks[2000]
     poses = 18000 * 4 * 12 * 8
     assert grown < 64 * 18000 + 2**20, (peaks, poses)  # 64 bytes a frame for what the scan keeps per frame
+
+
+def test_rotation_errors_match_numpys_gram_matrix_and_determinant():
+    """load.rotation_errors (what refuses non-rigid poses/matrix entries) against einsum's
+    R^T R and linalg.det, on rotations, rotations nudged off orthonormal by up to 1e-3,
+    reflections and scaled matrices."""
+    from collide.load import rotation_errors
+    rng = np.random.default_rng(3)
+    rotations = Rotation.random(400, random_state=4).as_matrix()
+    matrices = np.concatenate([rotations,
+                               rotations + rng.normal(scale=1e-3, size=rotations.shape) * rng.random((400, 1, 1)),
+                               rotations * np.array([-1.0, 1.0, 1.0]),
+                               rotations * rng.uniform(0.5, 2.0, size=(400, 1, 1))]).reshape(4, 400, 3, 3)
+    padded = np.zeros((4, 400, 4, 4))  # as poses/matrix holds them
+    padded[..., :3, :3] = matrices
+    error, det = rotation_errors(padded)
+    gram = np.einsum("...ki,...kj->...ij", matrices, matrices)
+    assert np.allclose(error, np.abs(gram - np.eye(3)).max(axis=(-2, -1)), rtol=0, atol=1e-15)
+    assert np.allclose(det, np.linalg.det(matrices), rtol=0, atol=1e-14)
+    assert (error[0] < 1e-14).all() and (error[1] > 0).all() and (det[2] < 0).all()  # reflections: orthonormal

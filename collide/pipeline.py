@@ -128,9 +128,9 @@ def _chunks(n_items, workers, max_size=64):
 
 
 #: seconds of work a local chunk is made to last at least, once the first chunks have
-#: measured what an item costs: a kernel call costs a little on its own (buffers of the
-#: size of the meshes: about 0.3 ms with two 100k-triangle meshes), which short scans
-#: of big meshes would otherwise pay once per 1/8 of the work
+#: measured what an item costs: a kernel call costs a little on its own (its buffers, and
+#: the pages of the meshes' size it touches first), which short scans of big meshes would
+#: otherwise pay once per 1/8 of the work
 CHUNK_SECONDS = 0.02
 #: the same with one worker, which has no share of the work to balance with another: a
 #: chunk then only paces the progress display (0.02 s chunks cost 3-8 % of a continuous

@@ -564,13 +564,16 @@ class TrianglePairs:
 def scene_size(ps, poses):
     """Diagonal of a box holding every object at every analysed frame (length units);
     poses: PoseSource."""
-    centre = ps.centre[ps.object_mesh]                                    # (N, 3)
-    radius = ps.sphere_radius[ps.object_mesh][None, :, None]
+    centre = ps.centre[ps.object_mesh][None, :, None, :]                  # (1, N, 1, 3)
+    radius = ps.sphere_radius[ps.object_mesh][:, None]                    # (N, 1)
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for _, block in poses.blocks():
-        world = np.einsum("tnij,nj->tni", block[..., :3], centre) + block[..., 3]
-        lo = np.minimum(lo, (world - radius).min(axis=(0, 1)))
-        hi = np.maximum(hi, (world + radius).max(axis=(0, 1)))
+        # R centre + p, column by column (einsum took 5x as long on (T, N, 3, 3) blocks)
+        world = (block[..., 0] * centre[..., 0] + block[..., 1] * centre[..., 1] + block[..., 2] * centre[..., 2]
+                 + block[..., 3])                                         # (T, N, 3)
+        # each object's extremes over the frames first: -r and +r do not change which is smallest
+        lo = np.minimum(lo, (world.min(axis=0) - radius).min(axis=0))
+        hi = np.maximum(hi, (world.max(axis=0) + radius).max(axis=0))
     return float(np.linalg.norm(hi - lo))
 
 

@@ -192,3 +192,19 @@ def test_rotation_errors_match_numpys_gram_matrix_and_determinant():
     assert np.allclose(error, np.abs(gram - np.eye(3)).max(axis=(-2, -1)), rtol=0, atol=1e-15)
     assert np.allclose(det, np.linalg.det(matrices), rtol=0, atol=1e-14)
     assert (error[0] < 1e-14).all() and (error[1] > 0).all() and (det[2] < 0).all()  # reflections: orthonormal
+
+
+def test_scene_size_is_the_diagonal_of_every_bounding_sphere_at_every_frame(monkeypatch):
+    """pipeline.scene_size (what dist_tol scales with), read in blocks of frames, against
+    the box of every object's bounding sphere at every frame computed in one go."""
+    from collide.packed import pack_scene
+    from collide.pipeline import scene_size
+    monkeypatch.setattr(config, "POSE_BLOCK_BYTES", 4096)  # blocks of a few frames
+    scene = collide.load.load_scene(FIXTURE / "meshes", FIXTURE / "traj.h5")
+    ps, _ = pack_scene(scene.meshes, scene.object_mesh)
+    assert scene.poses.block < scene.poses.n_frames  # several blocks
+    centre, radius = ps.centre[ps.object_mesh], ps.sphere_radius[ps.object_mesh][None, :, None]
+    poses = scene.poses.read(0, scene.poses.n_frames)
+    world = np.einsum("tnij,nj->tni", poses[..., :3], centre) + poses[..., 3]
+    expected = np.linalg.norm((world + radius).max(axis=(0, 1)) - (world - radius).min(axis=(0, 1)))
+    assert scene_size(ps, scene.poses) == pytest.approx(expected, rel=1e-15)

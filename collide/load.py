@@ -570,20 +570,31 @@ def _poses_from_matrices(src, datasets, frames, order, out):
     return 0.0
 
 
-def _read_poses(src, encoding, datasets, frames, n_objects):
-    """Poses float64 (S, N, 3, 4) at the file frames ``frames`` (S,), read and converted
+def _read_poses(src, encoding, datasets, frames, n_objects, n_static=0):
+    """Poses float64 (S, N + n_static, 3, 4) at the file frames ``frames`` (S,) of the N
+    objects the file lists, followed by n_static static meshes' objects at identity
+    (filled here: no second array of the poses' size). Read and converted
     config.POSE_CHUNK object-frames at a time, so that the conversion's temporaries stay
     small whatever the number of frames (memory: the result, plus one chunk). Returns
     (poses, largest quaternion norm error: 0.0 for matrices)."""
-    poses = np.empty((frames.size, n_objects, 3, 4))
+    poses = np.empty((frames.size, n_objects + n_static, 3, 4))
+    _set_static(poses, n_objects)
     order = _quaternion_order(src, datasets) if encoding == "quaternion" else None
     convert = _poses_from_quaternions if encoding == "quaternion" else _poses_from_matrices
     chunk = max(1, config.POSE_CHUNK // max(n_objects, 1))
     norm_error = 0.0
     for start in range(0, frames.size, chunk):
         stop = min(start + chunk, frames.size)
-        norm_error = max(norm_error, convert(src, datasets, frames[start:stop], order, poses[start:stop]))
+        norm_error = max(norm_error, convert(src, datasets, frames[start:stop], order,
+                                             poses[start:stop, :n_objects]))
     return poses, norm_error
+
+
+def _set_static(poses, n_listed):
+    """poses (S, N, 3, 4): objects n_listed.. at identity [I | 0]."""
+    if poses.shape[1] > n_listed:
+        poses[:, n_listed:] = 0.0
+        poses[:, n_listed:, :, :3] = np.eye(3)
 
 
 def _warn_normalising(path, norm_error):
@@ -670,9 +681,9 @@ def _with_static(listed, n_objects):
     meshes' objects, at identity: float64 (S, n_objects, 3, 4)."""
     if listed.shape[1] == n_objects:
         return listed
-    poses = np.zeros((listed.shape[0], n_objects, 3, 4))
+    poses = np.empty((listed.shape[0], n_objects, 3, 4))
     poses[:, :listed.shape[1]] = listed
-    poses[:, listed.shape[1]:, :, :3] = np.eye(3)
+    _set_static(poses, listed.shape[1])
     return poses
 
 
@@ -751,13 +762,14 @@ class PoseFile(PoseSource):
             src = _Source(h5, self.path, self.allow_external)
             try:
                 encoding, datasets = _pose_datasets(src, self.n_file_frames, self.n_listed)
-                listed, norm_error = _read_poses(src, encoding, datasets, file_frames, self.n_listed)
+                poses, norm_error = _read_poses(src, encoding, datasets, file_frames, self.n_listed,
+                                                self.n_objects - self.n_listed)
             except InputError:
                 raise
             except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:
                 raise InputError(self.path, f"cannot read ({str(exc)[:100]})", "a readable HDF5 trajectory") \
                     from None
-        return _with_static(listed, self.n_objects), norm_error
+        return poses, norm_error
 
 
 def check_trajectory(path, allow_external=False, max_memory=None):

@@ -11,6 +11,12 @@ Layout (``BVH``, m nodes, n primitives):
   children are nodes ``first`` and ``first + 1``. Node 0 is the root.
 - ``prim_ids``: int64 (n,), primitive indices in leaf order.
 
+Every builder leaves the tree in *smallest-id order*: the primitives of a leaf
+ascend, and of two siblings the one holding the smaller primitive id comes first.
+The smallest id under any node is then the first primitive of its leftmost leaf
+(``smallest_id_under``), found in O(depth) without a pass over the tree: the search
+for the smallest touching triangle pair of a contact needs it at every node it visits.
+
 The rule (``split``) is one of ``SPLIT_RULES``. The first three build top-down, as in
 the lecture: bound everything, split the primitives into two groups, recurse (with an
 explicit stack), stop at leaves of at most ``leaf_size`` primitives:
@@ -597,9 +603,71 @@ def build_bvh(box_lo, box_hi, centre, split="sah", leaf_size=None):
     if box_lo.shape[0] == 0:
         raise ValueError("cannot build a BVH over zero primitives")
     if split == "lbvh":
-        return BVH(*_build_lbvh(box_lo, box_hi, centre, leaf_size))
-    return BVH(*_build(box_lo, box_hi, centre, SPLIT_RULES[split], leaf_size,
-                       config.SAH_BINS, config.SAH_TRAVERSAL_COST))
+        bvh = BVH(*_build_lbvh(box_lo, box_hi, centre, leaf_size))
+    else:
+        bvh = BVH(*_build(box_lo, box_hi, centre, SPLIT_RULES[split], leaf_size,
+                          config.SAH_BINS, config.SAH_TRAVERSAL_COST))
+    _put_smallest_ids_first(*bvh)
+    return bvh
+
+
+# --- smallest-id order (see the module docstring) ----------------------------------------
+
+@njit(cache=True, nogil=True)
+def _put_smallest_ids_first(lo, hi, first, count, prim_ids):
+    """Reorder a BVH's arrays in place into smallest-id order: sort each leaf's
+    primitives, and swap two siblings' rows (their subtrees move with them) when the
+    second holds the smaller id. One backward pass: children come after parents."""
+    smallest = np.empty(first.shape[0], np.int64)
+    for node in range(first.shape[0] - 1, -1, -1):
+        if count[node] > 0:
+            prim_ids[first[node]:first[node] + count[node]].sort()
+            smallest[node] = prim_ids[first[node]]
+            continue
+        left = first[node]
+        if smallest[left + 1] < smallest[left]:
+            _swap_rows(lo, hi, first, count, smallest, left, left + 1)
+        smallest[node] = smallest[left]
+
+
+@njit(cache=True, nogil=True)
+def _swap_rows(lo, hi, first, count, smallest, i, j):
+    """Exchange nodes i and j (every per-node array)."""
+    for c in range(3):
+        lo[i, c], lo[j, c] = lo[j, c], lo[i, c]
+        hi[i, c], hi[j, c] = hi[j, c], hi[i, c]
+    first[i], first[j] = first[j], first[i]
+    count[i], count[j] = count[j], count[i]
+    smallest[i], smallest[j] = smallest[j], smallest[i]
+
+
+@njit(cache=True)
+def in_smallest_id_order(first, count, prim_ids):
+    """Whether a BVH (any tree of this layout) is in smallest-id order: every leaf's
+    primitives ascend and every first child holds a smaller id than its sibling. One
+    backward pass (children come after parents); for checking stored trees."""
+    smallest = np.empty(first.shape[0], np.int64)
+    for node in range(first.shape[0] - 1, -1, -1):
+        start = first[node]
+        if count[node] > 0:
+            for i in range(start + 1, start + count[node]):
+                if prim_ids[i] <= prim_ids[i - 1]:
+                    return False
+            smallest[node] = prim_ids[start]
+        elif smallest[start] < smallest[start + 1]:
+            smallest[node] = smallest[start]
+        else:
+            return False
+    return True
+
+
+@njit(cache=True)
+def smallest_id_under(first, count, prim_ids, node):
+    """The smallest primitive id under ``node`` of a BVH in smallest-id order: the
+    first primitive of its leftmost leaf."""
+    while count[node] == 0:
+        node = first[node]
+    return prim_ids[first[node]]
 
 
 def triangle_boxes(vertices, faces):

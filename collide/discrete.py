@@ -40,6 +40,7 @@ from .broad import (
     sweep_and_prune,
     swept_leaves,
 )
+from .bvh import smallest_id_under
 from .filters import pair_selected
 from .jit import njit
 from .motion import MOTION_WIDTH, swept_box
@@ -306,33 +307,20 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
 # --- the smallest touching triangle pair (what contacts report) ---------------------------------
 
 @njit(cache=True)
-def min_prim_ids(first, count, prim_ids):
-    """int64 (nodes,): the smallest primitive (mesh-local face) id under each node of the
-    packed BVHs (children come after their parent: one backward pass)."""
-    out = np.empty(first.shape[0], np.int64)
-    for node in range(first.shape[0] - 1, -1, -1):
-        if count[node] > 0:
-            smallest = prim_ids[first[node]]
-            for i in range(first[node] + 1, first[node] + count[node]):
-                smallest = min(smallest, prim_ids[i])
-            out[node] = smallest
-        else:
-            out[node] = min(out[first[node]], out[first[node] + 1])
-    return out
-
-
-@njit(cache=True)
 def _before(a0, b0, a1, b1):
     """(a0, b0) < (a1, b1) lexicographically."""
     return a0 < a1 or (a0 == a1 and b0 < b1)
 
 
 @njit(cache=True)
-def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, stack, counts):
+def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, stack, counts):
     """The lexicographically smallest intersecting triangle pair (tri_a, tri_b) of objects
     a and b at frame f (pose rp (N, 3, 4)), or (-1, -1): a tandem descent that visits
-    node pairs in order of their smallest ids (min_prim, min_prim_ids) and skips those
-    that cannot hold a pair before the best one found. Returns (stack, tri_a, tri_b)."""
+    node pairs in order of their smallest ids and skips those that cannot hold a pair
+    before the best one found. The BVHs are in smallest-id order (collide.bvh): a first
+    child's smallest id is its parent's, a second child's that of its leftmost leaf.
+    stack: int64 (cap, 4) rows (node_a, node_b, smallest id under node_a, under node_b).
+    Returns (stack, tri_a, tri_b)."""
     lo, hi, first, count, prim_ids = ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.prim_ids
     rel = relative_pose(rp[a], rp[b])
     abs_r = abs_rotation(rel)
@@ -342,14 +330,20 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
     q = np.empty((3, 3))
     best_a = np.iinfo(np.int64).max
     best_b = np.iinfo(np.int64).max
-    stack[0, 0] = ps.root[ps.object_mesh[a]]
-    stack[0, 1] = ps.root[ps.object_mesh[b]]
+    root_a = ps.root[ps.object_mesh[a]]
+    root_b = ps.root[ps.object_mesh[b]]
+    stack[0, 0] = root_a
+    stack[0, 1] = root_b
+    stack[0, 2] = smallest_id_under(first, count, prim_ids, root_a)
+    stack[0, 3] = smallest_id_under(first, count, prim_ids, root_b)
     top = 1
     while top > 0:
         top -= 1
         na = stack[top, 0]
         nb = stack[top, 1]
-        if not _before(min_prim[na], min_prim[nb], best_a, best_b):
+        min_a = stack[top, 2]
+        min_b = stack[top, 3]
+        if not _before(min_a, min_b, best_a, best_b):
             continue
         counts[COUNT_NODE_PAIRS] += 1
         box_a = node_box(lo, hi, na)
@@ -359,15 +353,15 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
         leaf_a = count[na] > 0
         leaf_b = count[nb] > 0
         if leaf_a and leaf_b:
-            for ia in range(first[na], first[na] + count[na]):
+            for ia in range(first[na], first[na] + count[na]):  # ascending ids
                 tri_a = prim_ids[ia]
                 if tri_a > best_a:
-                    continue
+                    break
                 placed_triangle(obj_a, tri_a, p)
                 for ib in range(first[nb], first[nb] + count[nb]):
                     tri_b = prim_ids[ib]
                     if not _before(tri_a, tri_b, best_a, best_b):
-                        continue
+                        break
                     placed_triangle(obj_b, tri_b, q)
                     counts[COUNT_TRIANGLE_PAIRS] += 1
                     if triangle_boxes_overlap(p, q) and triangles_intersect(p, q):
@@ -376,15 +370,19 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
             continue
         if top + 2 > stack.shape[0]:
             stack = grown_rows(stack, top)
-        # open the node that is not a leaf, or the larger of two inner nodes (as overlapping_leaves)
+        # open the node that is not a leaf, or the larger of two inner nodes (as overlapping_leaves);
+        # its first child (smaller ids) is popped first
         open_a = opens_a(leaf_a, leaf_b, box_a, box_b)
         c0 = first[na] if open_a else first[nb]
-        small, large = (c0, c0 + 1) if min_prim[c0] <= min_prim[c0 + 1] else (c0 + 1, c0)
-        # the child with the smaller ids is popped first
-        stack[top, 0] = large if open_a else na
-        stack[top, 1] = nb if open_a else large
-        stack[top + 1, 0] = small if open_a else na
-        stack[top + 1, 1] = nb if open_a else small
+        min_c1 = smallest_id_under(first, count, prim_ids, c0 + 1)
+        stack[top, 0] = c0 + 1 if open_a else na
+        stack[top, 1] = nb if open_a else c0 + 1
+        stack[top, 2] = min_c1 if open_a else min_a
+        stack[top, 3] = min_b if open_a else min_c1
+        stack[top + 1, 0] = c0 if open_a else na
+        stack[top + 1, 1] = nb if open_a else c0
+        stack[top + 1, 2] = min_a
+        stack[top + 1, 3] = min_b
         top += 2
     if best_a == np.iinfo(np.int64).max:
         return stack, -1, -1
@@ -392,24 +390,24 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, min_prim, s
 
 
 @njit(cache=True)
-def smallest_touching_pairs(ps, poses, static, frame, wanted, min_prim):
+def smallest_touching_pairs(ps, poses, static, frame, wanted):
     """The smallest intersecting triangle pair of each object pair wanted[k] = (a, b)
     (int64 (K, 2)) at ``frame``: int64 (K, 2) rows (tri_a, tri_b), (-1, -1) where a pair
     does not touch. The same pair as the smallest of scan_frames' collected pairs,
-    found without enumerating them. min_prim: min_prim_ids of ps (computed once per
-    scene by the caller)."""
+    found without enumerating them. ps's BVHs must be in smallest-id order (as
+    collide.bvh builds them)."""
     n_objects = poses.shape[1]
     rp = poses[frame]
     world = np.empty((ps.world_start[n_objects], 3))
     stamp = new_stamps(ps.world_start[n_objects])
     margin = np.empty(n_objects)
     object_margins(ps, rp, rp, margin)
-    stack = np.empty((64, 2), np.int64)
+    stack = np.empty((64, 4), np.int64)
     counts = np.zeros(COUNT_WIDTH, np.int64)
     out = np.empty((wanted.shape[0], 2), np.int64)
     for k in range(wanted.shape[0]):
         a = wanted[k, 0]
         b = wanted[k, 1]
         stack, out[k, 0], out[k, 1] = _smallest_pair_of(ps, rp, frame, a, b, margin[a] + margin[b], static, stamp,
-                                                        world, min_prim, stack, counts)
+                                                        world, stack, counts)
     return out

@@ -55,7 +55,7 @@ import numpy as np
 
 from . import config
 from ._version import __version__
-from .bvh import BVH, build_mesh_bvh, triangle_boxes
+from .bvh import BVH, build_mesh_bvh, in_smallest_id_order, triangle_boxes
 from .errors import escape_text
 from .files import open_regular
 from .load import Mesh, lengths, load_mesh
@@ -71,7 +71,7 @@ LOADER_VERSION = 1
 
 #: Behaviour of ``collide.bvh.build_mesh_bvh``. Bump whenever the builder can
 #: return a different tree for the same arrays and options.
-BVH_VERSION = 1
+BVH_VERSION = 2
 
 #: File suffixes whose vertices and faces depend on the file's bytes only (files
 #: they reference, such as OBJ materials, change nothing but looks).
@@ -336,8 +336,9 @@ def check_bvh_arrays(arrays, vertices, faces, leaf_size):
     """Raise _Unusable unless the BVH arrays are a tree that build_mesh_bvh could have
     built over these triangles: shapes agree, every non-root node is the child of
     exactly one inner node that comes before it, leaves hold at most ``leaf_size``
-    primitives and partition ``prim_ids`` (a permutation of range(F)), and every box
-    is exactly the box of its triangles (so also finite). Vectorised, O(F log F)."""
+    primitives and partition ``prim_ids`` (a permutation of range(F)), every box is
+    exactly the box of its triangles (so also finite), and the tree is in smallest-id
+    order (collide.bvh). Vectorised but for one O(nodes) kernel, O(F log F)."""
     lo, hi, first, count, prim = (arrays[k] for k in ("lo", "hi", "first", "count", "prim_ids"))
     n, m = faces.shape[0], count.shape[0]
     _require(lo.shape == hi.shape == (m, 3) and first.shape == (m,) and prim.shape == (n,)
@@ -355,6 +356,7 @@ def check_bvh_arrays(arrays, vertices, faces, leaf_size):
     _require(np.array_equal(lo[inner], np.minimum(lo[left], lo[left + 1]))
              and np.array_equal(hi[inner], np.maximum(hi[left], hi[left + 1])),
              "inner boxes are not their children's boxes")
+    _require(in_smallest_id_order(first, count, prim), "the tree is not in smallest-id order")
 
 
 def _check_tree(first, leaf, m):

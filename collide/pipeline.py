@@ -28,7 +28,7 @@ from .contacts import (
     intervals_from_steps,
     sort_columns,
 )
-from .discrete import min_prim_ids, scan_frames, smallest_touching_pairs
+from .discrete import scan_frames, smallest_touching_pairs
 from .errors import InputError, UsageError
 from .filters import build_filters, describe
 from .jit import kernel_cache_dir, thread_limit
@@ -451,22 +451,20 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static):
     search (discrete.smallest_touching_pairs) per such frame, of just the object pairs
     that need it. poses: PoseSource (read a block of those frames at a time)."""
     steps, _, from_hit = where
-    min_prim = min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids) if from_hit.any() else None
     frames = np.unique(steps[from_hit])
     for group in range(0, frames.size, poses.block):
         group_frames = frames[group:group + poses.block]
         block, block_rows = poses.at(group_frames)
         for f, row in zip(group_frames, block_rows):
-            _smallest_pairs_at_frame(contacts, np.flatnonzero(from_hit & (steps == f)), ps, block, row, static, f,
-                                     min_prim)
+            _smallest_pairs_at_frame(contacts, np.flatnonzero(from_hit & (steps == f)), ps, block, row, static, f)
 
 
-def _smallest_pairs_at_frame(contacts, rows, ps, poses, row, static, f, min_prim):
+def _smallest_pairs_at_frame(contacts, rows, ps, poses, row, static, f):
     """smallest_pairs_at_frames for the contacts ``rows`` of frame f, whose poses are
     poses[row] (float64 (N, 3, 4))."""
     wanted = np.ascontiguousarray(np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1),
                                   dtype=np.int64)
-    smallest = smallest_touching_pairs(ps, poses, static, np.int64(row), wanted, min_prim)
+    smallest = smallest_touching_pairs(ps, poses, static, np.int64(row), wanted)
     if (smallest < 0).any():
         raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
     contacts["tri_a"][rows] = smallest[:, 0]
@@ -776,9 +774,7 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True,
                        INTERPOLATIONS[interpolation], time_tol, dist_tol)
-    no_nodes = np.zeros(0, np.int64)  # the kernels' types, not the scene's (tens of ms on big meshes)
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
-                            min_prim_ids(no_nodes, no_nodes, no_nodes))
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
     compile_contact_points(ps, poses)
 
 

@@ -185,9 +185,8 @@ def _scan_frames(ps, poses, static, pairs):
 def _smallest_touching_pairs(ps, poses, static, pairs):
     import numpy as np
 
-    from .discrete import min_prim_ids, smallest_touching_pairs
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64),
-                            min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
+    from .discrete import smallest_touching_pairs
+    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
 
 
 def _scan_intervals(ps, poses, static, pairs):
@@ -210,7 +209,10 @@ def _triangle_pair_contact(ps, poses, static, pairs):
 
 
 def _bvh(ps, poses, static, pairs):
-    pass  # compile_unit's pack_scene has built the BVHs with the real builder
+    # compile_unit's pack_scene has built the BVHs with the real builder; the mesh
+    # cache's check of a stored BVH runs this kernel
+    from .bvh import in_smallest_id_order
+    in_smallest_id_order(ps.node_first, ps.node_count, ps.prim_ids)
 
 
 def _lbvh(ps, poses, static, pairs):

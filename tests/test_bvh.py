@@ -30,6 +30,23 @@ def check_bvh(bvh, lo, hi, leaf_size):
     inner = np.flatnonzero(bvh.count == 0)
     children = np.concatenate([bvh.first[inner], bvh.first[inner] + 1])
     assert sorted(children.tolist()) == list(range(1, bvh.count.shape[0]))
+    check_smallest_id_order(bvh)
+
+
+def check_smallest_id_order(bvh):
+    """Leaves ascend, and smallest_id_under (first primitive of the leftmost leaf) is
+    the minimum of the subtree's primitives at every node (computed children first)."""
+    first, count = bvh.first.tolist(), bvh.count.tolist()
+    smallest = [0] * len(count)
+    for node in reversed(range(len(count))):
+        if count[node] > 0:
+            ids = bvh.prim_ids[first[node]:first[node] + count[node]]
+            assert (np.diff(ids) > 0).all()
+            smallest[node] = int(ids.min())
+        else:
+            smallest[node] = min(smallest[first[node]], smallest[first[node] + 1])
+        assert bvh_module.smallest_id_under(bvh.first, bvh.count, bvh.prim_ids, node) == smallest[node]
+    assert bvh_module.in_smallest_id_order(bvh.first, bvh.count, bvh.prim_ids)
 
 
 @pytest.mark.parametrize("split", sorted(SPLIT_RULES))
@@ -111,20 +128,26 @@ def test_radix_tree_splits_at_the_first_differing_bit(seed):
 
 def test_lbvh_collapses_exactly_the_radix_subtrees_that_are_cheaper_as_leaves():
     """The leaf_size 4 tree is the leaf_size 1 tree (the whole radix tree, same primitive
-    order) with every subtree of at most 4 primitives whose leaf cost is at most its best
-    cost as an inner node made a leaf; its SAH cost is that optimum."""
+    order up to the order inside each leaf) with every subtree of at most 4 primitives
+    whose leaf cost is at most its best cost as an inner node made a leaf; its SAH cost
+    is that optimum."""
     mesh = load_mesh(DATA / "env.obj")
     n = mesh.faces.shape[0]
     full = build_mesh_bvh(mesh.vertices, mesh.faces, "lbvh", 1)
     tree = build_mesh_bvh(mesh.vertices, mesh.faces, "lbvh", 4)
-    assert full.count.shape[0] == 2 * n - 1 and np.array_equal(tree.prim_ids, full.prim_ids)
+    # the same primitive order but within leaves (sorted by id in both)
+    assert full.count.shape[0] == 2 * n - 1
+    leaf_starts = np.sort(tree.first[tree.count > 0])
+    assert np.array_equal(np.concatenate([np.sort(part) for part in np.split(full.prim_ids, leaf_starts[1:])]),
+                          tree.prim_ids)
 
     def ranges(bvh):   # (start, size) of every node's primitives
         m = bvh.count.shape[0]
         start, size = np.zeros(m, np.int64), np.zeros(m, np.int64)
         for node in range(m - 1, -1, -1):
             c = bvh.first[node]
-            start[node], size[node] = (c, bvh.count[node]) if bvh.count[node] else (start[c], size[c] + size[c + 1])
+            start[node], size[node] = ((c, bvh.count[node]) if bvh.count[node]
+                                       else (min(start[c], start[c + 1]), size[c] + size[c + 1]))
         return list(zip(start.tolist(), size.tolist()))
 
     areas = [bvh_module._half_area(lo, hi) for lo, hi in zip(full.lo, full.hi)]

@@ -411,6 +411,16 @@ def corrupt_bvh_entries():
         a["first"][[l0, l1]] = a["first"][[l1, l0]]
         a["count"][[l0, l1]] = a["count"][[l1, l0]]
 
+    def siblings_out_of_smallest_id_order(a):  # a valid tree, but the second child holds the smaller ids
+        left = a["first"][0]
+        for k in ("lo", "hi", "first", "count"):
+            a[k][[left, left + 1]] = a[k][[left + 1, left]]
+
+    def leaf_not_ascending(a):
+        leaf = np.flatnonzero(a["count"] > 1)[0]
+        start = a["first"][leaf]
+        a["prim_ids"][start:start + 2] = a["prim_ids"][start:start + 2][::-1].copy()
+
     def float32_boxes(a):
         a["lo"] = a["lo"].astype(np.float32)
 
@@ -424,8 +434,8 @@ def corrupt_bvh_entries():
                                     leaf_past_the_end, overlapping_leaves, huge_first, negative_count,
                                     leaf_too_big, child_before_parent, child_past_the_end, shared_child,
                                     extra_node, fewer_nodes, nan_box, infinite_box, shrunk_leaf_box,
-                                    grown_inner_box, swapped_leaves, float32_boxes, int32_ids,
-                                    two_dim_count)}
+                                    grown_inner_box, swapped_leaves, siblings_out_of_smallest_id_order,
+                                    leaf_not_ascending, float32_boxes, int32_ids, two_dim_count)}
 
 
 @pytest.mark.parametrize("spoil", sorted(corrupt_bvh_entries()))

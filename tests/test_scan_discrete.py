@@ -178,7 +178,7 @@ def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
     and a box, deeply overlapping, at random poses; leaf size 1 and 4)."""
     import trimesh
 
-    from collide.discrete import min_prim_ids, scan_frames, smallest_touching_pairs
+    from collide.discrete import scan_frames, smallest_touching_pairs
     from collide.filters import build_filters
     from collide.load import Mesh
     from collide.packed import pack_scene
@@ -203,8 +203,7 @@ def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
         _, every, _ = scan_frames(ps, poses, static, pairs, 0, n_frames, True, False)
         for f in range(n_frames):
             wanted = np.array([(0, 1), (0, 2), (1, 2)], np.int64)
-            found = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted,
-                                            min_prim_ids(ps.node_first, ps.node_count, ps.prim_ids))
+            found = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted)
             for (a, b), got in zip(wanted, found):
                 at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]
                 expected = min(map(tuple, at[:, [PAIR_TRI_A, PAIR_TRI_B]].tolist())) if at.size else (-1, -1)

@@ -98,10 +98,7 @@ def object_world_boxes(ps, rp0, rp1, motion, extra, margin):
     hi = np.empty((n, 3))
     for o in range(n):
         root = ps.root[ps.object_mesh[o]]
-        w_lo, w_hi = swept_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o], motion[o])
-        for c in range(3):
-            lo[o, c] = w_lo[c] - (margin[o] + extra)
-            hi[o, c] = w_hi[c] + (margin[o] + extra)
+        swept_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o], motion[o], lo[o], hi[o], margin[o] + extra)
     return lo, hi
 
 

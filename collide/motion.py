@@ -462,18 +462,16 @@ def chord_interval_of(box, rp0, rp1, i):
 
 
 @njit(cache=True)
-def swept_box(lo, hi, rp0, rp1, m):
-    """World AABB (lo (3,), hi (3,)) of the body box [lo, hi] over the step from pose rp0
-    to rp1 ((3, 4) each) under motion row m: its chord box widened by its deviation.
-    Pass the same pose twice (and a zero row) for a still box."""
+def swept_box(lo, hi, rp0, rp1, m, w_lo, w_hi, widen):
+    """Write into w_lo, w_hi (3,) the world AABB of the body box [lo, hi] over the step
+    from pose rp0 to rp1 ((3, 4) each) under motion row m: its chord box widened by its
+    deviation plus ``widen`` (length units). Pass the same pose twice (and a zero row)
+    for a still box. Writes in place: one call per object and frame, no allocation."""
     dev = box_deviation(m, lo, hi, rp0)
-    w_lo = np.empty(3)
-    w_hi = np.empty(3)
     for i in range(3):
         a, b = chord_interval(lo, hi, rp0, rp1, i)
-        w_lo[i] = a - dev
-        w_hi[i] = b + dev
-    return w_lo, w_hi
+        w_lo[i] = (a - dev) - widen
+        w_hi[i] = (b + dev) + widen
 
 
 # --- triangle pairs: certified first and last contact ---------------------------------------------

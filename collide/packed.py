@@ -41,9 +41,10 @@ def pack_scene(meshes, object_mesh, split="sah", leaf_size=None, build_bvh=None,
 
     ``build_bvh`` (default build_mesh_bvh; same signature) builds one mesh's BVH, e.g.
     meshcache.MeshCache().build_mesh_bvh; its trees must be in smallest-id order (see
-    collide.bvh), which the search for each contact's smallest triangle pair relies on. With ``workers`` > 1 several meshes build at
-    once in threads (the top-down builders release the GIL; lbvh is parallel inside
-    one build instead). The result does not depend on ``workers``.
+    collide.bvh), which the search for each contact's smallest triangle pair relies on.
+    With ``workers`` > 1 several meshes build at once in threads (the top-down builders
+    release the GIL; lbvh is parallel inside one build instead). The result does not
+    depend on ``workers``.
     """
     start = time.perf_counter()
     build_bvh = build_mesh_bvh if build_bvh is None else build_bvh

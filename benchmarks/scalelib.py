@@ -395,7 +395,7 @@ def _swept_levels_kernel():
     """A numba driver that repeats collide.swept.scan_intervals' loop over steps and object
     pairs (one thread) but stops at a given level: 1 object pairs (boxes, sweep and prune,
     swept spheres), 2 + BVH tandem descent (broad.RULE_SWEPT leaf pairs), 3 + triangle pair
-    boxes (narrow._swept_candidates), the CCD queries being all that the full kernel adds.
+    boxes (narrow.swept_candidates), the CCD queries being all that the full kernel adds.
     Sub-stepped pairs (work count ``substeps``) are treated as whole steps here. Compiled
     on first use (not cached: it inlines collide's kernels)."""
     global _LEVELS
@@ -407,7 +407,7 @@ def _swept_levels_kernel():
     from collide.discrete import object_margins, object_world_boxes, pair_leaves, pair_scratch
     from collide.filters import pair_selected
     from collide.motion import MOTION_WIDTH, step_motions
-    from collide.narrow import _swept_candidates, new_stamps
+    from collide.narrow import new_stamps, swept_candidates
     from collide.rows import COUNT_WIDTH
     from collide.swept import place_pair_leaves, spheres_meet
 
@@ -449,7 +449,7 @@ def _swept_levels_kernel():
                 if level < 3 or n_leaves == 0:
                     continue
                 place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, stamp0, world0, stamp1, world1)
-                cand, n, _ = _swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+                cand, n, _ = swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
                                             world0, world1, ps.world_start[a], ps.world_start[b], motion[a],
                                             motion[b], dist_tol, cand, counts)

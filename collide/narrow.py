@@ -171,7 +171,7 @@ def triangle_pair_count(leaves, n_leaves, count):
 # --- continuous (swept) tests -------------------------------------------------------------
 
 @njit(cache=True)
-def _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
+def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
                       world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
     """Triangle pairs (tri_a, tri_b) of the leaf pairs whose moving boxes, widened by
     dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
@@ -246,7 +246,7 @@ def stable_order(keys):
     return order
 
 
-#: columns of _swept_candidates' rows of B's triangles: corners at the step's start (0-8)
+#: columns of swept_candidates' rows of B's triangles: corners at the step's start (0-8)
 #: and end (9-17), moving_box (18-32), deviation bound (33)
 _SIDE_BOX = 18
 _SIDE_DEV = 33
@@ -303,11 +303,23 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
     t_first: the caller knows better). candidates: int64 (cap, 2) scratch, grown and returned;
     counts: int64 rows.COUNT_* counters.
     """
-    candidates, n, windows = _swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
-                                               face_base_b, world0, world1, world_base_a, world_base_b,
-                                               motion_a, motion_b, dist_tol, candidates, counts)
+    candidates, n, windows = swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
+                                              face_base_b, world0, world1, world_base_a, world_base_b,
+                                              motion_a, motion_b, dist_tol, candidates, counts)
+    t_first, t_last, best_a, best_b = candidates_contact_window(
+        candidates, n, windows, faces, face_base_a, face_base_b, world0, world1, world_base_a, world_base_b,
+        motion_a, motion_b, time_tol, dist_tol, find_first, find_last, counts)
+    return candidates, t_first, t_last, best_a, best_b
+
+
+@njit(cache=True)
+def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_base_b, world0, world1,
+                              world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol, find_first,
+                              find_last, counts):
+    """swept_contact_window's search, over the n triangle pairs candidates[:n] and their
+    windows (n, 2) from swept_candidates. Returns (t_first, t_last, tri_a, tri_b)."""
     if n == 0:  # most calls: no scratch to allocate, nothing to sort
-        return candidates, np.inf, np.inf if find_first else -np.inf, -1, -1
+        return np.inf, np.inf if find_first else -np.inf, -1, -1
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = ccd_work()
     t_first = np.inf
@@ -337,7 +349,7 @@ def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_b
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
                                t_last, np.bool_(True), corners, work, counts)
         t_last = max(t_last, t)
-    return candidates, t_first, t_last, best_a, best_b
+    return t_first, t_last, best_a, best_b
 
 
 @njit(cache=True)

@@ -29,9 +29,10 @@ part of the step: a pair touching at the step's first frame is tested as
 scan_frames would (the triangle pair that touched there first, then a descent
 to the first intersecting pair); any other pair is tested only if its swept
 test gets as far as leaf pairs, and then on those leaf pairs (they hold every
-leaf pair overlapping at the last frame), not by a descent of its own. So a
-continuous scan costs one broad phase and, for most pairs, one descent per
-step instead of two.
+leaf pair overlapping at the last frame), not by a descent of its own; and not
+at all if no triangle pair's moving boxes come near each other over the step
+(they would at its end if two triangles touched there). So a continuous scan
+costs one broad phase and, for most pairs, one descent per step instead of two.
 
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
@@ -83,7 +84,15 @@ from .motion import (
     step_motions,
     substeps,
 )
-from .narrow import append_row, intersecting_triangles, new_stamps, stamp_is, swept_contact_window
+from .narrow import (
+    append_row,
+    candidates_contact_window,
+    intersecting_triangles,
+    new_stamps,
+    stamp_is,
+    swept_candidates,
+    swept_contact_window,
+)
 from .packed import to_world
 from .rows import (
     COUNT_NODE_PAIRS,
@@ -192,9 +201,10 @@ def spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates):
 class Buffers(NamedTuple):
     """Growable int64 (cap, 2) buffers of one kernel call, passed along and returned
     (grown) by the functions that fill them."""
-    stack: np.ndarray      #: node pairs still to open in a tandem descent
-    leaves: np.ndarray     #: overlapping leaf pairs
-    tri_pairs: np.ndarray  #: candidate triangle pairs (narrow.swept_contact_window)
+    stack: np.ndarray        #: node pairs still to open in a tandem descent
+    leaves: np.ndarray       #: overlapping leaf pairs
+    tri_pairs: np.ndarray    #: candidate triangle pairs (narrow.swept_contact_window)
+    frame_pairs: np.ndarray  #: intersecting triangle pairs of a frame test
 
 
 class SubStep(NamedTuple):
@@ -232,6 +242,25 @@ def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_t
 
 
 @njit(cache=True, inline="always")
+def _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs, counts):
+    """narrow.swept_candidates of objects a and b (as _window): (tri_pairs, n, windows)."""
+    return swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
+                            ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
+                            ps.world_start[a], ps.world_start[b], motion[a], motion[b], dist_tol, tri_pairs, counts)
+
+
+@njit(cache=True, inline="always")
+def _search(ps, motion, world0, world1, a, b, tri_pairs, n, windows, time_tol, dist_tol, find_first, find_last,
+            counts):
+    """narrow.candidates_contact_window of objects a and b over the candidates of
+    _candidates: (t_first, t_last, tri_a, tri_b)."""
+    return candidates_contact_window(tri_pairs, n, windows, ps.faces, ps.face_start[ps.object_mesh[a]],
+                                     ps.face_start[ps.object_mesh[b]], world0, world1, ps.world_start[a],
+                                     ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, find_first,
+                                     find_last, counts)
+
+
+@njit(cache=True, inline="always")
 def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, time_tol, dist_tol,
                      find_first, sub, pair, buffers, counts):
     """Contact window of objects a and b over sub-step j of n_sub (fractions j / n_sub to
@@ -248,7 +277,7 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
     stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT_RIGID, pair_margin,
                                           pair, buffers.stack, buffers.leaves, counts)
     if n_leaves == 0:
-        return Buffers(stack, leaves, buffers.tri_pairs), np.inf, -np.inf, -1, -1
+        return Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs), np.inf, -np.inf, -1, -1
     for o in (a, b):
         mesh = ps.object_mesh[o]
         body = ps.vertices[ps.vert_start[mesh]:ps.vert_start[mesh + 1]]
@@ -257,7 +286,7 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
     tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, sub.motion, sub.world0, sub.world1, a, b, n_leaves,
                                                        leaves, time_tol * n_sub, dist_tol, find_first,
                                                        np.bool_(True), buffers.tri_pairs, counts)
-    return Buffers(stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b
+    return Buffers(stack, leaves, tri_pairs, buffers.frame_pairs), t_first, t_last, tri_a, tri_b
 
 
 @njit(cache=True)
@@ -327,8 +356,8 @@ def _descent_hit(ps, rp, f, a, b, static, frame, scratch, buffers, counts):
     Returns (buffers, tri_a, tri_b)."""
     stack, leaves, tri, n_tri = _pair_triangles(ps, rp, frame.still, f, a, b, frame.margin[a] + frame.margin[b],
                                                 static, frame.stamp, frame.world, True, scratch, buffers.stack,
-                                                buffers.leaves, buffers.tri_pairs, counts)
-    buffers = Buffers(stack, leaves, tri)
+                                                buffers.leaves, buffers.frame_pairs, counts)
+    buffers = Buffers(stack, leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
     return buffers, tri[0, 0], tri[0, 1]
@@ -356,9 +385,9 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts)
             n_near += 1
     tri, n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
                                         _placed(ps, rp, a, f, static, frame.stamp, frame.world),
-                                        _placed(ps, rp, b, f, static, frame.stamp, frame.world), buffers.tri_pairs,
-                                        0, True, counts)
-    buffers = Buffers(near, buffers.leaves, tri)
+                                        _placed(ps, rp, b, f, static, frame.stamp, frame.world),
+                                        buffers.frame_pairs, 0, True, counts)
+    buffers = Buffers(near, buffers.leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
     return buffers, tri[0, 0], tri[0, 1]
@@ -393,25 +422,29 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
         return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
     stack, leaves, n_leaves = pair_leaves(ps, rp0, rp1, motion, a, b, rule, pair_margin, state.pair, buffers.stack,
                                           buffers.leaves, counts)
-    buffers = Buffers(stack, leaves, buffers.tri_pairs)
     if n_leaves == 0:
-        return buffers, np.inf, -np.inf, -1, -1, -1, -1
-    if find_touch1:
+        return Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs), np.inf, -np.inf, -1, -1, -1, -1
+    place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.stamp0, state.world0, state.stamp1,
+                      state.world1)
+    tri_pairs, n_candidates, windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_leaves, leaves,
+                                                   dist_tol, buffers.tri_pairs, counts)
+    buffers = Buffers(stack, leaves, tri_pairs, buffers.frame_pairs)
+    # two triangles touching at the step's end would be candidates (their windows hold t = 1): with
+    # none, the frame test at k + 1 has nothing to find
+    if find_touch1 and n_candidates > 0:
         buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, leaves, n_leaves, buffers,
                                           counts)
         touch1 = hit_a >= 0
-    place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.stamp0, state.world0, state.stamp1,
-                      state.world1)
-    tri_pairs, t_first, t_last, tri_a, tri_b = _window(ps, motion, state.world0, state.world1, a, b, n_leaves,
-                                                       leaves, time_tol, dist_tol, np.bool_(not touch0),
-                                                       np.bool_(not touch1), buffers.tri_pairs, counts)
+    t_first, t_last, tri_a, tri_b = _search(ps, motion, state.world0, state.world1, a, b, tri_pairs, n_candidates,
+                                            windows, time_tol, dist_tol, np.bool_(not touch0), np.bool_(not touch1),
+                                            counts)
     if touch0:  # never reached with touch1 too (scan_intervals writes that row itself)
         t_first = 0.0
         t_last = max(t_last, 0.0)
     if touch1:
         t_first = min(t_first, 1.0)
         t_last = 1.0
-    return Buffers(buffers.stack, leaves, tri_pairs), t_first, t_last, tri_a, tri_b, hit_a, hit_b
+    return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
 
 
 @njit(cache=True)
@@ -473,7 +506,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                  _sub_step_buffers(n_objects, n_world),
                  pair_scratch(),
                  _frame_tests(n_objects, n_world if find_frames else 0))
-    buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64))
+    buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64),
+                      np.empty((64, 2), np.int64))
     counts = np.zeros(COUNT_WIDTH, np.int64)
     margin = np.empty(n_objects)
     motion = np.empty((n_objects, MOTION_WIDTH))
@@ -514,8 +548,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 touch1 = _key_row(keys1, key) >= 0
             elif touch0:  # as discrete.scan_frames: the pair that touched at frame k first
                 if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, keys0, tris0,
-                                   key, state.frame.p, state.frame.q, buffers.tri_pairs, counts):
-                    hit_a, hit_b = buffers.tri_pairs[0, 0], buffers.tri_pairs[0, 1]
+                                   key, state.frame.p, state.frame.q, buffers.frame_pairs, counts):
+                    hit_a, hit_b = buffers.frame_pairs[0, 0], buffers.frame_pairs[0, 1]
                 else:
                     buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair,
                                                          buffers, counts)

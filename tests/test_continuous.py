@@ -405,7 +405,8 @@ def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screw
 def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypatch, seed):
     """A continuous scan runs its frame tests inside the swept kernel (pipeline._run_steps):
     a pair's frame test at a step's last frame is skipped when the swept test finds the
-    pair apart over the step, and otherwise runs on the swept leaf pairs. It must find
+    pair apart over the step (no leaf pair, or no triangle pair whose moving boxes come
+    near), and otherwise runs on the swept leaf pairs. It must find
     exactly the (frame, pair) contacts of the discrete scan's own descents, and the same
     swept contacts as the scan that takes the frame contacts from the discrete scan
     (the --triangle-pairs path): FCL's robot, three copies turning and sliding through
@@ -451,6 +452,9 @@ def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypa
     _, known_ids, known_fractions = scan(True, pipeline.TrianglePairs())
     whole = (known_fractions[:, 0] == 0.0) & (known_fractions[:, 1] == 1.0)
     assert len(discrete) > 100 and whole.sum() > 50 and (~whole).sum() > 10  # steps searched at one end or both
+    touching = set(discrete)
+    entering = [(f, a, b) for f, a, b in discrete if f > 0 and (f - 1, a, b) not in touching]
+    assert len(entering) >= 5  # contacts found by the frame tests of pairs apart at the step's start
     for size in (1, 4, 64):
         with monkeypatch.context() as patch:
             patch.setattr(pipeline, "_chunk_size", lambda *args, size=size: size)

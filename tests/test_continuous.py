@@ -401,8 +401,9 @@ def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screw
     assert sampled <= world
 
 
+@pytest.mark.parametrize("interpolation", ["screw", "linear-vertex"])
 @pytest.mark.parametrize("seed", range(3))
-def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypatch, seed):
+def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypatch, seed, interpolation):
     """A continuous scan runs its frame tests inside the swept kernel (pipeline._run_steps):
     a pair's frame test at a step's last frame is skipped when the swept test finds the
     pair apart over the step (no leaf pair, or no triangle pair whose moving boxes come
@@ -411,7 +412,7 @@ def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypa
     swept contacts as the scan that takes the frame contacts from the discrete scan
     (the --triangle-pairs path): FCL's robot, three copies turning and sliding through
     two overlapping static copies of its environment, 40 frames in blocks of 7 and chunks
-    of 1, 4 and 64 steps."""
+    of 1, 4 and 64 steps, under both interpolations."""
     from conftest import DATA
 
     from collide import pipeline
@@ -442,8 +443,8 @@ def test_frame_tests_inside_the_swept_kernel_find_the_discrete_contacts(monkeypa
     def scan(continuous, pair_sink):
         source = PoseArray(poses)
         source.block = 7
-        hits, ids, fractions, _ = pipeline._scan_blocks(ps, source, static, filters, pair_sink, continuous, "screw",
-                                                        config.TIME_TOL, dist_tol, 1, None)
+        hits, ids, fractions, _ = pipeline._scan_blocks(ps, source, static, filters, pair_sink, continuous,
+                                                        interpolation, config.TIME_TOL, dist_tol, 1, None)
         frame_pairs = sorted(map(tuple, hits[:, [HIT_FRAME, HIT_A, HIT_B]].tolist()))
         order = np.lexsort((ids[:, SWEPT_B], ids[:, SWEPT_A], ids[:, SWEPT_STEP]))
         return frame_pairs, ids[order][:, [SWEPT_STEP, SWEPT_A, SWEPT_B]], fractions[order]

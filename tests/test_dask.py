@@ -14,13 +14,24 @@ import collide
 def test_scan_on_a_local_dask_cluster_matches_the_local_scan(triangle_pairs):
     """Both continuous paths: frame tests then swept tests (--triangle-pairs), and frame
     tests run inside the swept kernel (the default)."""
-    distributed = pytest.importorskip("distributed")
-    meshes, traj = REPO / "examples" / "tunnel" / "meshes", REPO / "examples" / "tunnel" / "traj.h5"
-    local = collide.scan(meshes, traj, triangle_pairs=triangle_pairs)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster:
-        remote = collide.scan(meshes, traj, triangle_pairs=triangle_pairs, scheduler=cluster.scheduler_address)
+    local, remote = _local_and_on_cluster("tunnel", processes=False, triangle_pairs=triangle_pairs)
     assert remote.contacts["t_begin"].size == 1
+    _assert_same_contacts(local, remote)
+
+
+def _local_and_on_cluster(example, processes, **options):
+    """collide.scan of an example here, and on a local Dask cluster of two single-thread
+    workers (threads of this process, or worker processes)."""
+    distributed = pytest.importorskip("distributed")
+    meshes, traj = REPO / "examples" / example / "meshes", REPO / "examples" / example / "traj.h5"
+    local = collide.scan(meshes, traj, **options)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=processes,
+                                  dashboard_address=None) as cluster:
+        remote = collide.scan(meshes, traj, scheduler=cluster.scheduler_address, **options)
+    return local, remote
+
+
+def _assert_same_contacts(local, remote):
     for name in local.contacts:
         assert np.array_equal(local.contacts[name], remote.contacts[name], equal_nan=True), name
 
@@ -54,12 +65,6 @@ def test_tasks_carry_kernels_by_name_and_workers_run_the_module_kernel():
 def test_scan_on_worker_processes_matches_the_local_scan(mode):
     """Worker processes receive the kernels through pickling (threads in this process do
     not), in both modes' chunk kernels: the fixture example, which both modes see touch."""
-    distributed = pytest.importorskip("distributed")
-    meshes, traj = REPO / "examples" / "fixture" / "meshes", REPO / "examples" / "fixture" / "traj.h5"
-    local = collide.scan(meshes, traj, mode=mode)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
-        remote = collide.scan(meshes, traj, mode=mode, scheduler=cluster.scheduler_address)
+    local, remote = _local_and_on_cluster("fixture", processes=True, mode=mode)
     assert remote.contacts["t_begin"].size == local.contacts["t_begin"].size >= 1
-    for name in local.contacts:
-        assert np.array_equal(local.contacts[name], remote.contacts[name], equal_nan=True), name
+    _assert_same_contacts(local, remote)

@@ -284,40 +284,25 @@ def _side_box(side, j):
 
 
 @njit(cache=True)
-def swept_contact_window(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
-                         world0, world1, world_base_a, world_base_b, motion_a, motion_b,
-                         time_tol, dist_tol, find_first, find_last, candidates, counts):
-    """When two objects touch during one step, from the triangles of their leaf pairs.
-
-    Returns (candidates, t_first, t_last, tri_a, tri_b): the earliest contact of any
-    triangle pair and the latest one (fractions of the step, both conservative:
-    motion.triangle_pair_contact, under the objects' motion rows motion_a and
-    motion_b), and the smallest pair touching at t_first; t_first = inf when none
-    touches. A contact that ends and starts again within the step is reported as one
-    (the step is the resolution of gaps). Pairs are searched in order of the earliest
-    (latest) moment their moving boxes meet, and each search only looks for contacts
-    that could still move t_first (t_last); the searches stop once no remaining pair's
-    boxes meet early (late) enough to move it.
-    With find_first False only t_last is searched (t_first stays inf, t_last is -inf
-    when none touches); with find_last False only t_first (t_last is returned as
-    t_first: the caller knows better). candidates: int64 (cap, 2) scratch, grown and returned;
-    counts: int64 rows.COUNT_* counters.
-    """
-    candidates, n, windows = swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a,
-                                              face_base_b, world0, world1, world_base_a, world_base_b,
-                                              motion_a, motion_b, dist_tol, candidates, counts)
-    t_first, t_last, best_a, best_b = candidates_contact_window(
-        candidates, n, windows, faces, face_base_a, face_base_b, world0, world1, world_base_a, world_base_b,
-        motion_a, motion_b, time_tol, dist_tol, find_first, find_last, counts)
-    return candidates, t_first, t_last, best_a, best_b
-
-
-@njit(cache=True)
 def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_base_b, world0, world1,
                               world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol, find_first,
                               find_last, counts):
-    """swept_contact_window's search, over the n triangle pairs candidates[:n] and their
-    windows (n, 2) from swept_candidates. Returns (t_first, t_last, tri_a, tri_b)."""
+    """When two objects touch during one step, from their candidate triangle pairs.
+
+    candidates[:n] int64 (n, 2) and their windows float64 (n, 2): swept_candidates of
+    the objects' overlapping leaf pairs. Returns (t_first, t_last, tri_a, tri_b): the
+    earliest contact of any triangle pair and the latest one (fractions of the step,
+    both conservative: motion.triangle_pair_contact, under the objects' motion rows
+    motion_a and motion_b), and the smallest pair touching at t_first; t_first = inf
+    when none touches. A contact that ends and starts again within the step is reported
+    as one (the step is the resolution of gaps). Pairs are searched in order of the
+    earliest (latest) moment their moving boxes meet, and each search only looks for
+    contacts that could still move t_first (t_last); the searches stop once no remaining
+    pair's boxes meet early (late) enough to move it.
+    With find_first False only t_last is searched (t_first stays inf, t_last is -inf
+    when none touches); with find_last False only t_first (t_last is returned as
+    t_first: the caller knows better). counts: int64 rows.COUNT_* counters.
+    """
     if n == 0:  # most calls: no scratch to allocate, nothing to sort
         return np.inf, np.inf if find_first else -np.inf, -1, -1
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1

@@ -16,7 +16,7 @@ kernel for a chunk of steps. Per step:
    skipped;
 3. BVH leaves: tandem descent with boxes bounding the motion (broad.RULE_SWEPT_RIGID
    under screw motion, RULE_SWEPT under linear-vertex motion);
-4. triangles: certified CCD (narrow.swept_contact_window) gives the object
+4. triangles: certified CCD (narrow.candidates_contact_window) gives the object
    pair's first and last contact during the step, over all its triangle pairs.
 
 What touches at the frames spares work: a pair touching at both frames of a
@@ -91,7 +91,6 @@ from .narrow import (
     new_stamps,
     stamp_is,
     swept_candidates,
-    swept_contact_window,
 )
 from .packed import to_world
 from .rows import (
@@ -203,7 +202,7 @@ class Buffers(NamedTuple):
     (grown) by the functions that fill them."""
     stack: np.ndarray        #: node pairs still to open in a tandem descent
     leaves: np.ndarray       #: overlapping leaf pairs
-    tri_pairs: np.ndarray    #: candidate triangle pairs (narrow.swept_contact_window)
+    tri_pairs: np.ndarray    #: candidate triangle pairs (narrow.swept_candidates)
     frame_pairs: np.ndarray  #: intersecting triangle pairs of a frame test
 
 
@@ -229,21 +228,8 @@ def _sub_step_buffers(n_objects, n_world):
 # cold compile of the step scan took 75 s instead of 60 s.
 
 @njit(cache=True, inline="always")
-def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first, find_last,
-            tri_pairs, counts):
-    """narrow.swept_contact_window of objects a and b under motion rows (N, MOTION_WIDTH),
-    with world vertices world0, world1 at both ends and their n_leaves overlapping leaf
-    pairs."""
-    return swept_contact_window(
-        leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
-        ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
-        ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, find_first,
-        find_last, tri_pairs, counts)
-
-
-@njit(cache=True, inline="always")
 def _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs, counts):
-    """narrow.swept_candidates of objects a and b (as _window): (tri_pairs, n, windows)."""
+    """narrow.swept_candidates of objects a and b: (tri_pairs, n, windows)."""
     return swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
                             ps.world_start[a], ps.world_start[b], motion[a], motion[b], dist_tol, tri_pairs, counts)
@@ -258,6 +244,19 @@ def _search(ps, motion, world0, world1, a, b, tri_pairs, n, windows, time_tol, d
                                      ps.face_start[ps.object_mesh[b]], world0, world1, ps.world_start[a],
                                      ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, find_first,
                                      find_last, counts)
+
+
+@njit(cache=True, inline="always")
+def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_tol, find_first, find_last,
+            tri_pairs, counts):
+    """Contact window of objects a and b under motion rows (N, MOTION_WIDTH), with world
+    vertices world0, world1 at both ends and their n_leaves overlapping leaf pairs:
+    _candidates, then _search. Returns (tri_pairs, t_first, t_last, tri_a, tri_b)."""
+    tri_pairs, n, windows = _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs,
+                                        counts)
+    t_first, t_last, tri_a, tri_b = _search(ps, motion, world0, world1, a, b, tri_pairs, n, windows, time_tol,
+                                            dist_tol, find_first, find_last, counts)
+    return tri_pairs, t_first, t_last, tri_a, tri_b
 
 
 @njit(cache=True, inline="always")

@@ -318,7 +318,8 @@ def opens_a(leaf_a, leaf_b, box_a, box_b):
 
 
 @njit(cache=True)
-def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, top, out, max_out, counts):
+def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, top, out, max_out, counts,
+                       toward=None):
     """Leaf pairs of two BVHs whose boxes overlap under ``rule``, found by a tandem
     descent that can stop and resume.
 
@@ -331,6 +332,12 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     that needs only some can test them and resume with the returned stack. Buffers
     grow when full. counts: int64 rows.COUNT_* counters. Returns (stack, top, out, k),
     rows out[:k]. Node pairs are visited in a fixed order: results are deterministic.
+
+    toward: None, or float64 (2, 3) a point in A's and one in B's body frame. Of the two
+    children of an opened node, the one whose box lies nearer its tree's point is then
+    visited first (the set of leaf pairs is the same, only their order changes): a
+    caller that stops at the first leaf pair that touches finds one near the points
+    sooner when the touching region is there.
     """
     rel = relative_pose(pose[0], pose[2])
     abs_r = abs_rotation(rel)
@@ -362,7 +369,10 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
             if leaf_a and leaf_b:
                 k = _put_pair(out, k, na, nb)
                 continue
-            _open(first, na, nb, opens_a(leaf_a, leaf_b, box_a, box_b), stack, top)
+            open_a = opens_a(leaf_a, leaf_b, box_a, box_b)
+            _open(first, na, nb, open_a, stack, top)
+            if toward is not None:
+                _nearer_child_on_top(lo, hi, toward[0 if open_a else 1], open_a, stack, top)
             top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
@@ -374,6 +384,26 @@ def _put_pair(out, k, na, nb):
     out[k, 0] = na
     out[k, 1] = nb
     return k + 1
+
+
+@njit(cache=True)
+def _box_distance2(lo, hi, node, point):
+    """Squared distance from point (3,) to node's box (0 inside)."""
+    d2 = 0.0
+    for i in range(3):
+        d = max(lo[node, i] - point[i], point[i] - hi[node, i], 0.0)
+        d2 += d * d
+    return d2
+
+
+@njit(cache=True)
+def _nearer_child_on_top(lo, hi, point, open_a, stack, top):
+    """Swap the two child pairs _open just wrote to stack rows top and top + 1 when the
+    child in row top (visited second) lies nearer point (3,), in the opened tree's body frame."""
+    col = 0 if open_a else 1
+    if _box_distance2(lo, hi, stack[top, col], point) < _box_distance2(lo, hi, stack[top + 1, col], point):
+        for j in range(2):
+            stack[top, j], stack[top + 1, j] = stack[top + 1, j], stack[top, j]
 
 
 @njit(cache=True)

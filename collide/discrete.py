@@ -9,7 +9,9 @@ BVHs (broad.overlapping_leaves with RULE_POSE) and tests triangle pairs exactly
 (``first_only``), the triangle pair that touched at the previous frame (motion is
 coherent: it usually still does) is tested first, and otherwise the descent hands
 over its leaf pairs a few at a time and stops at the first intersecting triangle
-pair.
+pair; for a pair that touched at the previous frame it opens the nodes nearest that
+frame's triangle pair first and hands over one leaf pair at a time, since the
+touching region has only moved a little.
 
 Output rows (int64, layouts in rows.py):
 - hits (H, HIT_WIDTH): frame, object_a, object_b, number of intersecting
@@ -75,6 +77,8 @@ from .rows import (
 
 #: leaf pairs the descent hands over at a time when one intersecting triangle pair is enough
 FIRST_HIT_BATCH = 8
+#: and when it looks near the previous frame's pair first (its first leaf pairs usually touch)
+NEAR_HIT_BATCH = 1
 
 
 @njit(cache=True)
@@ -106,11 +110,15 @@ class PairScratch(NamedTuple):
     """Per-kernel scratch of a pair's descent."""
     pose: np.ndarray    #: float64 (4, 3, 4): A at pose 0, A at pose 1, B at pose 0, B at pose 1
     motion: np.ndarray  #: float64 (2, MOTION_WIDTH): motion rows of A and B
+    toward: np.ndarray  #: float64 (2, 3): where the descent looks first, in A's and B's body frames
+    p: np.ndarray       #: float64 (3, 3): a triangle of A
+    q: np.ndarray       #: float64 (3, 3): a triangle of B
 
 
 @njit(cache=True)
 def pair_scratch():
-    return PairScratch(np.empty((4, 3, 4)), np.empty((2, MOTION_WIDTH)))
+    return PairScratch(np.empty((4, 3, 4)), np.empty((2, MOTION_WIDTH)), np.empty((2, 3)), np.empty((3, 3)),
+                       np.empty((3, 3)))
 
 
 @njit(cache=True)
@@ -170,44 +178,69 @@ def _placed(ps, rp, o, f, static, stamp, world):
 
 
 @njit(cache=True)
-def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_only, scratch, stack, leaves,
-                    tri, counts):
+def _centroid(ps, o, t, out):
+    """Centroid of triangle t (mesh-local) of object o's mesh, in its body frame, into out (3,)."""
+    first = ps.vert_start[ps.object_mesh[o]]
+    face = ps.faces[ps.face_start[ps.object_mesh[o]] + t]
+    for i in range(3):
+        out[i] = (ps.vertices[first + face[0], i] + ps.vertices[first + face[1], i]
+                  + ps.vertices[first + face[2], i]) / 3.0
+
+
+@njit(cache=True)
+def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_only, near_a, near_b, scratch,
+                    stack, leaves, tri, counts):
     """Intersecting triangle pairs of objects a and b at frame f (pose rp (N, 3, 4); still:
     zero motion rows (N, MOTION_WIDTH)): all of them, or the first one found when
     first_only (the descent hands over its leaf pairs FIRST_HIT_BATCH at a time and
-    stops there). Returns (stack, leaves, tri, n_tri)."""
+    stops there). near_a, near_b: a triangle pair (mesh-local ids) where one is likely
+    (the pair that touched at the frame before), or -1, -1: the descent then visits
+    the nodes nearest their centroids first (broad.overlapping_leaves' ``toward``).
+    Returns (stack, leaves, tri, n_tri)."""
     top = start_descent(ps, rp, rp, still, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
-    batch = FIRST_HIT_BATCH if first_only else np.iinfo(np.int64).max
+    batch = (NEAR_HIT_BATCH if near_a >= 0 else FIRST_HIT_BATCH) if first_only else np.iinfo(np.int64).max
+    if near_a >= 0:
+        _centroid(ps, a, near_a, scratch.toward[0])
+        _centroid(ps, b, near_b, scratch.toward[1])
+    lo, hi, first, count, prim_ids = ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.prim_ids
+    pose, motion, toward, p, q = scratch.pose, scratch.motion, scratch.toward, scratch.p, scratch.q
+    obj_a = _placed(ps, rp, a, f, static, stamp, world)
+    obj_b = _placed(ps, rp, b, f, static, stamp, world)
     n_tri = np.int64(0)
     while top > 0 and not (first_only and n_tri > 0):
-        stack, top, leaves, n_leaves = overlapping_leaves(
-            ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose, scratch.motion, RULE_POSE,
-            margin, stack, top, leaves, batch, counts)
-        if n_leaves == 0:
-            continue
-        tri, n_tri = intersecting_triangles(
-            leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, _placed(ps, rp, a, f, static, stamp, world),
-            _placed(ps, rp, b, f, static, stamp, world), tri, n_tri, first_only, counts)
+        if near_a >= 0:
+            stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
+                                                              stack, top, leaves, batch, counts, toward)
+        else:
+            stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
+                                                              stack, top, leaves, batch, counts)
+        if n_leaves > 0:
+            tri, n_tri = intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, tri, n_tri,
+                                                first_only, p, q, counts)
     return stack, leaves, tri, n_tri
 
 
 @njit(cache=True)
-def _still_touching(ps, rp, f, a, b, static, stamp, world, previous_keys, previous_tris, key, p, q, tri, counts):
-    """Whether the triangle pair objects a and b touched through at the previous frame
-    (previous_keys: sorted a * N + b of its hits, previous_tris (K, 2) their pairs) still
-    intersects at frame f; if so it is tri[0]. p, q: (3, 3) scratch."""
-    i = np.searchsorted(previous_keys, key)
-    if i == previous_keys.shape[0] or previous_keys[i] != key:
-        return False
+def key_row(keys, key):
+    """Row of key in sorted keys (int64), or -1."""
+    i = np.searchsorted(keys, key)
+    return i if i < keys.shape[0] and keys[i] == key else -1
+
+
+@njit(cache=True)
+def _still_touching(ps, rp, f, a, b, static, stamp, world, tri_a, tri_b, p, q, tri, counts):
+    """Whether triangle pair (tri_a, tri_b) of objects a and b (the one they touched
+    through at the previous frame) still intersects at frame f; if so it is tri[0].
+    p, q: (3, 3) scratch."""
     counts[COUNT_OBJECT_PAIRS] += 1
     counts[COUNT_TRIANGLE_PAIRS] += 1
-    placed_triangle(_placed(ps, rp, a, f, static, stamp, world), previous_tris[i, 0], p)
-    placed_triangle(_placed(ps, rp, b, f, static, stamp, world), previous_tris[i, 1], q)
+    placed_triangle(_placed(ps, rp, a, f, static, stamp, world), tri_a, p)
+    placed_triangle(_placed(ps, rp, b, f, static, stamp, world), tri_b, q)
     if not (triangle_boxes_overlap(p, q) and triangles_intersect(p, q)):
         return False
-    tri[0, 0] = previous_tris[i, 0]
-    tri[0, 1] = previous_tris[i, 1]
+    tri[0, 0] = tri_a
+    tri[0, 1] = tri_b
     return True
 
 
@@ -277,13 +310,16 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
             b = candidates[c, 1]
             if not pair_selected(pairs, a, b):
                 continue
-            if first_only and _still_touching(ps, rp, f, a, b, static, stamp, world, previous_keys, previous_tris,
-                                              a * n_objects + b, p, q, tri, counts):
+            before = key_row(previous_keys, a * n_objects + b)  # -1 unless first_only
+            near_a = previous_tris[before, 0] if before >= 0 else -1
+            near_b = previous_tris[before, 1] if before >= 0 else -1
+            if before >= 0 and _still_touching(ps, rp, f, a, b, static, stamp, world, near_a, near_b, p, q, tri,
+                                               counts):
                 n_tri = np.int64(1)
             else:
                 stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
-                                                            stamp, world, first_only, scratch, stack, leaves, tri,
-                                                            counts)
+                                                            stamp, world, first_only, near_a, near_b, scratch, stack,
+                                                            leaves, tri, counts)
             if n_tri == 0:
                 continue
             tri_a, tri_b = _smallest_pair(tri, n_tri)

@@ -66,6 +66,7 @@ from .discrete import (
     _placed,
     _still_touching,
     append_hit,
+    key_row,
     object_margins,
     object_world_boxes,
     pair_leaves,
@@ -349,13 +350,13 @@ def _frame_tests(n_objects, n_world):
 
 
 @njit(cache=True)
-def _descent_hit(ps, rp, f, a, b, static, frame, scratch, buffers, counts):
+def _descent_hit(ps, rp, f, a, b, static, frame, near_a, near_b, scratch, buffers, counts):
     """A triangle pair (tri_a, tri_b) of objects a and b intersecting at frame f (poses rp
-    (N, 3, 4)), or (-1, -1): the frame test's tandem descent, stopped at the first one.
-    Returns (buffers, tri_a, tri_b)."""
+    (N, 3, 4)), or (-1, -1): the frame test's tandem descent, stopped at the first one,
+    looking near triangle pair (near_a, near_b) first. Returns (buffers, tri_a, tri_b)."""
     stack, leaves, tri, n_tri = _pair_triangles(ps, rp, frame.still, f, a, b, frame.margin[a] + frame.margin[b],
-                                                static, frame.stamp, frame.world, True, scratch, buffers.stack,
-                                                buffers.leaves, buffers.frame_pairs, counts)
+                                                static, frame.stamp, frame.world, True, near_a, near_b, scratch,
+                                                buffers.stack, buffers.leaves, buffers.frame_pairs, counts)
     buffers = Buffers(stack, leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
@@ -385,7 +386,7 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts)
     tri, n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
                                         _placed(ps, rp, a, f, static, frame.stamp, frame.world),
                                         _placed(ps, rp, b, f, static, frame.stamp, frame.world),
-                                        buffers.frame_pairs, 0, True, counts)
+                                        buffers.frame_pairs, 0, True, frame.p, frame.q, counts)
     buffers = Buffers(near, buffers.leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
@@ -413,8 +414,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
                      _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
     if n_sub > 1:
         if find_touch1:
-            buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair, buffers,
-                                                 counts)
+            buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, -1, -1, state.pair,
+                                                 buffers, counts)
         buffers, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
             ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, state.sub, state.pair,
             buffers, counts)
@@ -459,13 +460,6 @@ def _frame_contacts(touching, touching_tris, k, n_objects):
     start = np.searchsorted(touching, step_pair_key(k, 0, 0, n_objects))
     stop = np.searchsorted(touching, step_pair_key(k + 1, 0, 0, n_objects))
     return touching[start:stop] - step_pair_key(k, 0, 0, n_objects), touching_tris[start:stop]
-
-
-@njit(cache=True)
-def _key_row(keys, key):
-    """Row of key in sorted keys, or -1."""
-    i = np.searchsorted(keys, key)
-    return i if i < keys.shape[0] and keys[i] == key else -1
 
 
 class Step(NamedTuple):
@@ -540,18 +534,19 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             if not pair_selected(pairs, a, b):
                 continue
             key = a * n_objects + b
-            row0 = _key_row(keys0, key)
+            row0 = key_row(keys0, key)
             touch0 = row0 >= 0
             hit_a = hit_b = -1  # a triangle pair touching at frame k + 1 found here (find_frames)
             if not find_frames:
-                touch1 = _key_row(keys1, key) >= 0
+                touch1 = key_row(keys1, key) >= 0
             elif touch0:  # as discrete.scan_frames: the pair that touched at frame k first
-                if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, keys0, tris0,
-                                   key, state.frame.p, state.frame.q, buffers.frame_pairs, counts):
-                    hit_a, hit_b = buffers.frame_pairs[0, 0], buffers.frame_pairs[0, 1]
+                near_a, near_b = tris0[row0, 0], tris0[row0, 1]
+                if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, near_a,
+                                   near_b, state.frame.p, state.frame.q, buffers.frame_pairs, counts):
+                    hit_a, hit_b = near_a, near_b
                 else:
-                    buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair,
-                                                         buffers, counts)
+                    buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, near_a, near_b,
+                                                         state.pair, buffers, counts)
                 touch1 = hit_a >= 0
             else:
                 touch1 = False

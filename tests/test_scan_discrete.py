@@ -261,3 +261,93 @@ def test_sweep_and_prune_finds_exactly_the_overlapping_boxes(seed):
     assert [tuple(row) for row in found.tolist()] == expected
     if n > 2:
         assert expected  # the scene has overlaps to find
+
+
+def _two_spheres(leaf_size=None):
+    """PackedScene of two objects sharing one icosphere (radius 1, 1280 triangles)."""
+    import trimesh
+
+    from collide.load import Mesh
+    from collide.packed import pack_scene
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    mesh = Mesh("sphere", None, np.asarray(sphere.vertices, float), np.asarray(sphere.faces, np.int64))
+    return pack_scene([mesh], np.array([0, 0]), leaf_size=leaf_size)[0]
+
+
+def _sliding_poses(n_frames, turn):
+    """Poses (n_frames, 2, 3, 4): sphere 0 still at the origin, sphere 1 sliding from x = -1.6
+    to x = 1.6 at y = 0.3, turning by ``turn`` radians per frame about z: the two overlap
+    throughout, their intersection circle moving a little between frames."""
+    poses = np.zeros((n_frames, 2, 3, 4))
+    poses[:, 0, :, :3] = np.eye(3)
+    for f in range(n_frames):
+        c, s = np.cos(turn * f), np.sin(turn * f)
+        poses[f, 1, :, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+        poses[f, 1, :, 3] = (-1.6 + 3.2 * f / (n_frames - 1), 0.3, 0.0)
+    return poses
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_descent_toward_points_finds_the_same_leaf_pairs_after_the_same_work(seed):
+    """broad.overlapping_leaves with ``toward`` only reorders the descent: the same leaf
+    pairs (as a set) after testing as many node pairs as without it (two overlapping
+    spheres, random guide points, leaf sizes 1 and 4)."""
+    from collide.broad import RULE_POSE, overlapping_leaves
+    from collide.discrete import pair_scratch, start_descent
+    from collide.motion import MOTION_WIDTH
+    from collide.rows import COUNT_NODE_PAIRS, COUNT_WIDTH
+    rng = np.random.default_rng(seed)
+    poses = _sliding_poses(9, 0.3)[rng.integers(1, 8)]
+    for leaf_size in (1, 4):
+        ps = _two_spheres(leaf_size)
+        found = []
+        for toward in (None, rng.uniform(-1.0, 1.0, (2, 3))):
+            scratch, stack, out = pair_scratch(), np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
+            top = start_descent(ps, poses, poses, np.zeros((2, MOTION_WIDTH)), 0, 1, scratch, stack)
+            counts = np.zeros(COUNT_WIDTH, np.int64)
+            args = (ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose, scratch.motion, RULE_POSE,
+                    1e-9, stack, top, out, np.iinfo(np.int64).max, counts)
+            _, _, out, k = overlapping_leaves(*args) if toward is None else overlapping_leaves(*args, toward)
+            found.append((out[:k], counts[COUNT_NODE_PAIRS]))
+        (plain, plain_work), (toward, toward_work) = found
+        assert plain.shape[0] > 20
+        assert not np.array_equal(plain, toward)  # the order did change
+        assert sorted(map(tuple, plain.tolist())) == sorted(map(tuple, toward.tolist()))
+        assert plain_work == toward_work
+
+
+def test_first_hit_descent_looks_near_the_last_frames_pair_first():
+    """scan_frames' first-hit descent for a pair that touched at the frame before, when that
+    frame's triangle pair no longer touches (discrete._pair_triangles given the pair):
+    it finds an intersecting pair exactly when the exhaustive search finds any, one of
+    those, and, looking near the last one first, tests fewer node pairs than a descent
+    from the roots in its fixed order (a sphere sliding and turning through another)."""
+    from collide.discrete import _pair_triangles, pair_scratch
+    from collide.motion import MOTION_WIDTH
+    from collide.narrow import new_stamps
+    from collide.rows import COUNT_NODE_PAIRS, COUNT_WIDTH
+    ps = _two_spheres()
+    poses = _sliding_poses(60, 0.05)
+    still, static = np.zeros((2, MOTION_WIDTH)), np.zeros(2, bool)
+    world, stamp = np.empty((ps.world_start[2], 3)), new_stamps(ps.world_start[2])
+    scratch, stack, leaves = pair_scratch(), np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
+
+    def search(f, first_only, near):
+        counts = np.zeros(COUNT_WIDTH, np.int64)
+        *_, tri, n = _pair_triangles(ps, poses[f], still, f, 0, 1, 1e-9, static, stamp, world, first_only, near[0],
+                                     near[1], scratch, stack, leaves, np.empty((4, 2), np.int64), counts)
+        return set(map(tuple, tri[:n].tolist())), counts[COUNT_NODE_PAIRS]
+
+    work = {"near": 0, "roots": 0}
+    previous, compared = None, 0
+    for f in range(poses.shape[0]):
+        every, _ = search(f, False, (-1, -1))
+        if previous is not None and previous not in every:
+            for how, near in (("near", previous), ("roots", (-1, -1))):
+                one, node_pairs = search(f, True, near)
+                assert len(one) == min(len(every), 1) and one <= every
+                work[how] += node_pairs
+            compared += 1
+        previous = search(f, True, previous or (-1, -1))[0].pop() if every else None
+    assert compared >= 20
+    assert work["near"] < 0.8 * work["roots"], work

@@ -318,8 +318,8 @@ def opens_a(leaf_a, leaf_b, box_a, box_b):
 
 
 @njit(cache=True)
-def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, top, out, max_out, counts,
-                       toward=None):
+def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, top, out, max_out, counts, toward,
+                       guided):
     """Leaf pairs of two BVHs whose boxes overlap under ``rule``, found by a tandem
     descent that can stop and resume.
 
@@ -333,9 +333,9 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     grow when full. counts: int64 rows.COUNT_* counters. Returns (stack, top, out, k),
     rows out[:k]. Node pairs are visited in a fixed order: results are deterministic.
 
-    toward: None, or float64 (2, 3) a point in A's and one in B's body frame. Of the two
-    children of an opened node, the one whose box lies nearer its tree's point is then
-    visited first (the set of leaf pairs is the same, only their order changes): a
+    toward: float64 (2, 3) a point in A's and one in B's body frame, read when ``guided``.
+    Of the two children of an opened node, the one whose box lies nearer its tree's point
+    is then visited first (the set of leaf pairs is the same, only their order changes): a
     caller that stops at the first leaf pair that touches finds one near the points
     sooner when the touching region is there.
     """
@@ -371,8 +371,8 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
                 continue
             open_a = opens_a(leaf_a, leaf_b, box_a, box_b)
             _open(first, na, nb, open_a, stack, top)
-            if toward is not None:
-                _nearer_child_on_top(lo, hi, toward[0 if open_a else 1], open_a, stack, top)
+            if guided:
+                _nearer_child_on_top(lo, hi, toward, open_a, stack, top)
             top += 2
     counts[COUNT_LEAF_PAIRS] += k
     return stack, top, out, k
@@ -387,21 +387,23 @@ def _put_pair(out, k, na, nb):
 
 
 @njit(cache=True)
-def _box_distance2(lo, hi, node, point):
-    """Squared distance from point (3,) to node's box (0 inside)."""
+def _box_distance2(lo, hi, node, points, row):
+    """Squared distance from points[row] (points (2, 3)) to node's box (0 inside)."""
     d2 = 0.0
     for i in range(3):
-        d = max(lo[node, i] - point[i], point[i] - hi[node, i], 0.0)
+        d = max(lo[node, i] - points[row, i], points[row, i] - hi[node, i], 0.0)
         d2 += d * d
     return d2
 
 
 @njit(cache=True)
-def _nearer_child_on_top(lo, hi, point, open_a, stack, top):
+def _nearer_child_on_top(lo, hi, toward, open_a, stack, top):
     """Swap the two child pairs _open just wrote to stack rows top and top + 1 when the
-    child in row top (visited second) lies nearer point (3,), in the opened tree's body frame."""
+    child in row top (visited second) lies nearer the opened tree's point of toward
+    (2, 3) (row 0: A's, row 1: B's, body frames)."""
     col = 0 if open_a else 1
-    if _box_distance2(lo, hi, stack[top, col], point) < _box_distance2(lo, hi, stack[top + 1, col], point):
+    if _box_distance2(lo, hi, stack[top, col], toward, col) < _box_distance2(lo, hi, stack[top + 1, col], toward,
+                                                                             col):
         for j in range(2):
             stack[top, j], stack[top + 1, j] = stack[top + 1, j], stack[top, j]
 

@@ -154,7 +154,7 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
     else:
         stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
                                                    scratch.pose, scratch.motion, rule, margin, stack, top,
-                                                   leaves, np.iinfo(np.int64).max, counts)
+                                                   leaves, np.iinfo(np.int64).max, counts, scratch.toward, False)
     return stack, leaves, n
 
 
@@ -209,12 +209,8 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
     obj_b = _placed(ps, rp, b, f, static, stamp, world)
     n_tri = np.int64(0)
     while top > 0 and not (first_only and n_tri > 0):
-        if near_a >= 0:
-            stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
-                                                              stack, top, leaves, batch, counts, toward)
-        else:
-            stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
-                                                              stack, top, leaves, batch, counts)
+        stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
+                                                          stack, top, leaves, batch, counts, toward, near_a >= 0)
         if n_leaves > 0:
             tri, n_tri = intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, tri, n_tri,
                                                 first_only, p, q, counts)

@@ -328,7 +328,7 @@ def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
             if descend == "plain":
                 _, _, out, k = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
                                                   scratch.motion, RULE_SWEPT, 1e-9, stack, top, out,
-                                                  np.iinfo(np.int64).max, counts)
+                                                  np.iinfo(np.int64).max, counts, scratch.toward, False)
             else:
                 _, _, out, k = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
                                             scratch.motion, False, 1e-9, stack, top, out, counts)

@@ -289,7 +289,7 @@ def _sliding_poses(n_frames, turn):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_a_descent_toward_points_finds_the_same_leaf_pairs_after_the_same_work(seed):
-    """broad.overlapping_leaves with ``toward`` only reorders the descent: the same leaf
+    """broad.overlapping_leaves guided ``toward`` two points only reorders the descent: the same leaf
     pairs (as a set) after testing as many node pairs as without it (two overlapping
     spheres, random guide points, leaf sizes 1 and 4)."""
     from collide.broad import RULE_POSE, overlapping_leaves
@@ -301,19 +301,20 @@ def test_a_descent_toward_points_finds_the_same_leaf_pairs_after_the_same_work(s
     for leaf_size in (1, 4):
         ps = _two_spheres(leaf_size)
         found = []
-        for toward in (None, rng.uniform(-1.0, 1.0, (2, 3))):
+        toward = rng.uniform(-1.0, 1.0, (2, 3))
+        for guided in (False, True):
             scratch, stack, out = pair_scratch(), np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
             top = start_descent(ps, poses, poses, np.zeros((2, MOTION_WIDTH)), 0, 1, scratch, stack)
             counts = np.zeros(COUNT_WIDTH, np.int64)
-            args = (ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose, scratch.motion, RULE_POSE,
-                    1e-9, stack, top, out, np.iinfo(np.int64).max, counts)
-            _, _, out, k = overlapping_leaves(*args) if toward is None else overlapping_leaves(*args, toward)
+            _, _, out, k = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
+                                              scratch.motion, RULE_POSE, 1e-9, stack, top, out,
+                                              np.iinfo(np.int64).max, counts, toward, guided)
             found.append((out[:k], counts[COUNT_NODE_PAIRS]))
-        (plain, plain_work), (toward, toward_work) = found
+        (plain, plain_work), (near_first, near_first_work) = found
         assert plain.shape[0] > 20
-        assert not np.array_equal(plain, toward)  # the order did change
-        assert sorted(map(tuple, plain.tolist())) == sorted(map(tuple, toward.tolist()))
-        assert plain_work == toward_work
+        assert not np.array_equal(plain, near_first)  # the order did change
+        assert sorted(map(tuple, plain.tolist())) == sorted(map(tuple, near_first.tolist()))
+        assert plain_work == near_first_work
 
 
 def test_first_hit_descent_looks_near_the_last_frames_pair_first():

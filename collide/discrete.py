@@ -193,10 +193,11 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
     """Intersecting triangle pairs of objects a and b at frame f (pose rp (N, 3, 4); still:
     zero motion rows (N, MOTION_WIDTH)): all of them, or the first one found when
     first_only (the descent hands over its leaf pairs FIRST_HIT_BATCH at a time and
-    stops there). near_a, near_b: a triangle pair (mesh-local ids) where one is likely
-    (the pair that touched at the frame before), or -1, -1: the descent then visits
-    the nodes nearest their centroids first (broad.overlapping_leaves' ``toward``).
-    Returns (stack, leaves, tri, n_tri)."""
+    stops there). near_a, near_b: a triangle pair (mesh-local ids) near which one is
+    likely (the pair that touched at the frame before), or -1, -1 if none: with a pair,
+    the descent visits the nodes nearest their centroids first (broad.overlapping_leaves'
+    ``toward``) and hands over NEAR_HIT_BATCH leaf pairs at a time. Returns (stack,
+    leaves, tri, n_tri)."""
     top = start_descent(ps, rp, rp, still, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
     batch = (NEAR_HIT_BATCH if near_a >= 0 else FIRST_HIT_BATCH) if first_only else np.iinfo(np.int64).max

@@ -133,8 +133,8 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
 
     leaves int64 (>= n_leaves, 2): (leaf of A, leaf of B) node indices; prim_ids
     hold mesh-local face indices; obj_a, obj_b: the two objects (Placed). p, q:
-    float64 (3, 3) scratch. counts: int64 rows.COUNT_* counters. Returns (out, n_out) with out int64 (cap, 2) of
-    mesh-local triangle indices.
+    float64 (3, 3) scratch. counts: int64 rows.COUNT_* counters. Returns (out, n_out)
+    with out int64 (cap, 2) of mesh-local triangle indices.
     """
     out = with_room(out, n_out, n_out + triangle_pair_count(leaves, n_leaves, count))
     for k in range(n_leaves):  # out has room for every pair: it is not rebound in here

@@ -6,8 +6,8 @@ pairs the swept test searches stay apart by several steps' worth of motion. This
 measures that on a scene folder (``meshes/`` and ``traj.h5``, e.g. written by
 ``bench_bodies.py --out``):
 
-    python benchmarks/bench_bodies.py --bodies 1000 --frames 300 --repeat 1 --out /tmp/b1000
-    python benchmarks/clearance.py /tmp/b1000 [--every 15]
+    python benchmarks/bench_bodies.py --bodies 1000 --frames 300 --repeat 1 --out b1000
+    python benchmarks/clearance.py b1000 [--every 15]
 
 At every ``--every``-th step, the pairs a continuous scan would search are approximated as
 those whose world boxes (over both frames' vertices) overlap and whose bounding spheres

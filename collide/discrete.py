@@ -226,12 +226,13 @@ def key_row(keys, key):
 
 
 @njit(cache=True)
-def _still_touching(ps, rp, f, a, b, static, stamp, world, tri_a, tri_b, p, q, tri, counts):
+def _still_touching(ps, rp, f, a, b, static, stamp, world, tri_a, tri_b, scratch, tri, counts):
     """Whether triangle pair (tri_a, tri_b) of objects a and b (the one they touched
     through at the previous frame) still intersects at frame f; if so it is tri[0].
-    p, q: (3, 3) scratch."""
+    scratch: PairScratch (its triangles p and q)."""
     counts[COUNT_OBJECT_PAIRS] += 1
     counts[COUNT_TRIANGLE_PAIRS] += 1
+    p, q = scratch.p, scratch.q
     placed_triangle(_placed(ps, rp, a, f, static, stamp, world), tri_a, p)
     placed_triangle(_placed(ps, rp, b, f, static, stamp, world), tri_b, q)
     if not (triangle_boxes_overlap(p, q) and triangles_intersect(p, q)):
@@ -292,8 +293,6 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
     still = np.zeros((n_objects, MOTION_WIDTH))
     hit = np.empty(HIT_WIDTH, np.int64)
     row = np.empty(PAIR_WIDTH, np.int64)
-    p = np.empty((3, 3))
-    q = np.empty((3, 3))
     previous_keys = np.zeros(0, np.int64)
     previous_tris = np.zeros((0, 2), np.int64)
     for f in range(frame_start, frame_stop):
@@ -310,7 +309,7 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
             before = key_row(previous_keys, a * n_objects + b)  # -1 unless first_only
             near_a = previous_tris[before, 0] if before >= 0 else -1
             near_b = previous_tris[before, 1] if before >= 0 else -1
-            if before >= 0 and _still_touching(ps, rp, f, a, b, static, stamp, world, near_a, near_b, p, q, tri,
+            if before >= 0 and _still_touching(ps, rp, f, a, b, static, stamp, world, near_a, near_b, scratch, tri,
                                                counts):
                 n_tri = np.int64(1)
             else:

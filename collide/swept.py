@@ -339,14 +339,12 @@ class FrameTests(NamedTuple):
     stamp: np.ndarray   #: int64 the frame each world row was computed for (narrow.new_stamps)
     margin: np.ndarray  #: float64 (N,) rounding margins at the frame (discrete.object_margins)
     still: np.ndarray   #: float64 (N, MOTION_WIDTH) zero motion rows
-    p: np.ndarray       #: float64 (3, 3) triangle scratch
-    q: np.ndarray       #: float64 (3, 3)
 
 
 @njit(cache=True)
 def _frame_tests(n_objects, n_world):
     return FrameTests(np.empty((n_world, 3)), new_stamps(n_world), np.empty(n_objects),
-                      np.zeros((n_objects, MOTION_WIDTH)), np.empty((3, 3)), np.empty((3, 3)))
+                      np.zeros((n_objects, MOTION_WIDTH)))
 
 
 @njit(cache=True)
@@ -364,12 +362,12 @@ def _descent_hit(ps, rp, f, a, b, static, frame, near_a, near_b, scratch, buffer
 
 
 @njit(cache=True, inline="always")
-def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts):
+def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers, counts):
     """_descent_hit from a swept descent's leaf pairs leaves[:n_leaves] instead of a
     descent of its own: they hold every leaf pair that overlaps at frame f, since boxes
     bounding a motion hold the boxes at its poses. The leaf pairs whose boxes overlap
-    at frame f go to buffers.stack (free between descents). Returns (buffers, tri_a,
-    tri_b)."""
+    at frame f go to buffers.stack (free between descents); scratch: discrete.PairScratch
+    (its triangles p and q). Returns (buffers, tri_a, tri_b)."""
     lo, hi = ps.node_lo, ps.node_hi
     rel = relative_pose(rp[a], rp[b])
     abs_r = abs_rotation(rel)
@@ -386,7 +384,7 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, leaves, n_leaves, buffers, counts)
     tri, n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
                                         _placed(ps, rp, a, f, static, frame.stamp, frame.world),
                                         _placed(ps, rp, b, f, static, frame.stamp, frame.world),
-                                        buffers.frame_pairs, 0, True, frame.p, frame.q, counts)
+                                        buffers.frame_pairs, 0, True, scratch.p, scratch.q, counts)
     buffers = Buffers(near, buffers.leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
@@ -432,8 +430,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     # two triangles touching at the step's end would be candidates (their windows hold t = 1): with
     # none, the frame test at k + 1 has nothing to find
     if find_touch1 and n_candidates > 0:
-        buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, leaves, n_leaves, buffers,
-                                          counts)
+        buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair, leaves, n_leaves,
+                                          buffers, counts)
         touch1 = hit_a >= 0
     t_first, t_last, tri_a, tri_b = _search(ps, motion, state.world0, state.world1, a, b, tri_pairs, n_candidates,
                                             windows, time_tol, dist_tol, np.bool_(not touch0), np.bool_(not touch1),
@@ -542,7 +540,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             elif touch0:  # as discrete.scan_frames: the pair that touched at frame k first
                 near_a, near_b = tris0[row0, 0], tris0[row0, 1]
                 if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, near_a,
-                                   near_b, state.frame.p, state.frame.q, buffers.frame_pairs, counts):
+                                   near_b, state.pair, buffers.frame_pairs, counts):
                     hit_a, hit_b = near_a, near_b
                 else:
                     buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, near_a, near_b,

@@ -151,10 +151,11 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
         stack, top, leaves, n = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
                                              scratch.motion, rule == RULE_SWEPT_RIGID, margin, stack, top, leaves,
                                              counts)
-    else:
+    else:  # RULE_POSE, passed as the literal _pair_triangles passes: one compiled overlapping_leaves
         stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                                                   scratch.pose, scratch.motion, rule, margin, stack, top,
-                                                   leaves, np.iinfo(np.int64).max, counts, scratch.toward, False)
+                                                   scratch.pose, scratch.motion, RULE_POSE, margin, stack, top,
+                                                   leaves, np.iinfo(np.int64).max, counts, scratch.toward,
+                                                   np.bool_(False))
     return stack, leaves, n
 
 

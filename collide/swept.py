@@ -274,8 +274,9 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
         pose_at(motion[o], rp0[o], rp1[o], t1, sub.pose1[o])
         screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # a small turn: never half
     counts[COUNT_SUBSTEPS] += 1
-    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, RULE_SWEPT_RIGID, pair_margin,
-                                          pair, buffers.stack, buffers.leaves, counts)
+    rule = np.int64(RULE_SWEPT_RIGID)  # not a literal (see _pair_window)
+    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, rule, pair_margin, pair,
+                                          buffers.stack, buffers.leaves, counts)
     if n_leaves == 0:
         return Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs), np.inf, -np.inf, -1, -1
     for o in (a, b):
@@ -352,8 +353,9 @@ def _descent_hit(ps, rp, f, a, b, static, frame, near_a, near_b, scratch, buffer
     """A triangle pair (tri_a, tri_b) of objects a and b intersecting at frame f (poses rp
     (N, 3, 4)), or (-1, -1): the frame test's tandem descent, stopped at the first one,
     looking near triangle pair (near_a, near_b) first. Returns (buffers, tri_a, tri_b)."""
+    first_only = np.bool_(True)  # not a literal: the overload scan_frames compiles (see _pair_window)
     stack, leaves, tri, n_tri = _pair_triangles(ps, rp, frame.still, f, a, b, frame.margin[a] + frame.margin[b],
-                                                static, frame.stamp, frame.world, True, near_a, near_b, scratch,
+                                                static, frame.stamp, frame.world, first_only, near_a, near_b, scratch,
                                                 buffers.stack, buffers.leaves, buffers.frame_pairs, counts)
     buffers = Buffers(stack, leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
@@ -372,8 +374,8 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers
     rel = relative_pose(rp[a], rp[b])
     abs_r = abs_rotation(rel)
     margin = frame.margin[a] + frame.margin[b]
-    near = with_room(buffers.stack, 0, n_leaves)
-    n_near = 0
+    near = with_room(buffers.stack, np.int64(0), n_leaves)
+    n_near = np.int64(0)
     for k in range(n_leaves):
         counts[COUNT_NODE_PAIRS] += 1
         if oriented_boxes_overlap(node_box(lo, hi, leaves[k, 0]), node_box(lo, hi, leaves[k, 1]), rel, abs_r,
@@ -384,7 +386,7 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers
     tri, n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
                                         _placed(ps, rp, a, f, static, frame.stamp, frame.world),
                                         _placed(ps, rp, b, f, static, frame.stamp, frame.world),
-                                        buffers.frame_pairs, 0, True, scratch.p, scratch.q, counts)
+                                        buffers.frame_pairs, np.int64(0), np.bool_(True), scratch.p, scratch.q, counts)
     buffers = Buffers(near, buffers.leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
@@ -412,7 +414,10 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
                      _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
     if n_sub > 1:
         if find_touch1:
-            buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, -1, -1, state.pair,
+            # constants passed to a compiled function are typed as literals, and each literal
+            # value compiles a copy of it (and of what it calls): np.int64(-1) is not one
+            none = np.int64(-1)
+            buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
                                                  buffers, counts)
         buffers, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
             ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, state.sub, state.pair,
@@ -561,7 +566,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 elif t_first < np.inf:
                     tri_a, tri_b = tris0[row0, 0], tris0[row0, 1]
             if hit_a >= 0:
-                hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, 1, hit_a, hit_b)
+                hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, np.int64(1), hit_a, hit_b)
             if t_first == np.inf:
                 continue
             id_row[SWEPT_STEP] = k

@@ -5,6 +5,7 @@ import shutil
 import subprocess
 import sys
 
+import pytest
 from conftest import REPO
 
 # compiles one small kernel (the pair filter) and reports how many functions numba compiled
@@ -55,6 +56,39 @@ def test_a_changed_source_file_compiles_afresh(tmp_path):
         f.write("\n# an edit\n")
     second = probe(changed, kernels)
     assert second["folder"] != first["folder"] and "pair_selected" in second["compiled"]
+
+
+# compiles both scans' kernels and counts the compilations of each function
+COMPILES = """
+import collections, json, sys
+sys.path.insert(0, sys.argv[1])
+import numba.core.event as event
+compiled = collections.Counter()
+class Count(event.Listener):
+    def on_start(self, e): compiled[e.data["dispatcher"].py_func.__qualname__] += 1
+    def on_end(self, e): pass
+event.register("numba:compile", Count())
+from collide import warmup
+for unit in ("discrete", "continuous"):
+    warmup.compile_unit(unit)
+print(json.dumps(compiled))
+"""
+
+
+@pytest.mark.slow
+def test_the_scans_compile_one_copy_of_each_descent(tmp_path):
+    """A constant passed to a compiled function is typed as a literal, and each literal
+    value compiles a copy of that function and of everything it calls: the copies of the
+    frame descent made the step scan's compile about a third longer. Each descent
+    function is compiled once for both scans."""
+    env = {"COLLIDE_KERNEL_CACHE_DIR": str(tmp_path / "kernels"), "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run([sys.executable, "-c", COMPILES, str(REPO)], env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    compiled = json.loads(proc.stdout)
+    for name in ("scan_frames", "scan_intervals", "_pair_triangles", "_descent_hit", "pair_leaves",
+                 "overlapping_leaves", "swept_leaves", "intersecting_triangles", "triangle_pair_count"):
+        assert compiled.get(name) == 1, (name, compiled.get(name))
 
 
 def test_warmup_command_adds_the_lbvh_builder_only_when_asked(monkeypatch):

@@ -170,7 +170,7 @@ def triangle_pair_count(leaves, n_leaves, count):
 
 @njit(cache=True)
 def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
-                      world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
+                     world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
     """Triangle pairs (tri_a, tri_b) of the leaf pairs whose moving boxes, widened by
     dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
     moment of the step (windows.swept_window_of, its per-triangle parts computed once per

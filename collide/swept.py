@@ -227,6 +227,12 @@ def _sub_step_buffers(n_objects, n_world):
 # scan_intervals (numba's inline="always"; each has one or two callers). As functions of
 # their own, numba optimised and compiled all the CCD code below them once per level: a
 # cold compile of the step scan took 75 s instead of 60 s.
+#
+# A constant passed from one compiled function to another (True, -1, 0, a module
+# constant) is typed as a literal, and each literal value compiles another copy of the
+# callee and of everything it calls (three copies of the frame descent made the step
+# scan's compile a third longer). Where a callee is also called with variables, the
+# calls below pass np.int64(...) / np.bool_(...), which are not literals.
 
 @njit(cache=True, inline="always")
 def _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs, counts):
@@ -274,7 +280,7 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
         pose_at(motion[o], rp0[o], rp1[o], t1, sub.pose1[o])
         screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # a small turn: never half
     counts[COUNT_SUBSTEPS] += 1
-    rule = np.int64(RULE_SWEPT_RIGID)  # not a literal (see _pair_window)
+    rule = np.int64(RULE_SWEPT_RIGID)  # not a literal (see above _candidates)
     stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, rule, pair_margin, pair,
                                           buffers.stack, buffers.leaves, counts)
     if n_leaves == 0:
@@ -353,7 +359,7 @@ def _descent_hit(ps, rp, f, a, b, static, frame, near_a, near_b, scratch, buffer
     """A triangle pair (tri_a, tri_b) of objects a and b intersecting at frame f (poses rp
     (N, 3, 4)), or (-1, -1): the frame test's tandem descent, stopped at the first one,
     looking near triangle pair (near_a, near_b) first. Returns (buffers, tri_a, tri_b)."""
-    first_only = np.bool_(True)  # not a literal: the overload scan_frames compiles (see _pair_window)
+    first_only = np.bool_(True)  # not a literal: the overload scan_frames compiles (see above _candidates)
     stack, leaves, tri, n_tri = _pair_triangles(ps, rp, frame.still, f, a, b, frame.margin[a] + frame.margin[b],
                                                 static, frame.stamp, frame.world, first_only, near_a, near_b, scratch,
                                                 buffers.stack, buffers.leaves, buffers.frame_pairs, counts)
@@ -414,9 +420,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
                      _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
     if n_sub > 1:
         if find_touch1:
-            # constants passed to a compiled function are typed as literals, and each literal
-            # value compiles a copy of it (and of what it calls): np.int64(-1) is not one
-            none = np.int64(-1)
+            none = np.int64(-1)  # not a literal (see above _candidates)
             buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
                                                  buffers, counts)
         buffers, t_first, t_last, tri_a, tri_b = _sub_stepped_window(

@@ -11,6 +11,7 @@ import h5py
 import numpy as np
 import pytest
 import trimesh
+from numba import njit
 
 TESTS = Path(__file__).resolve().parent
 DATA = TESTS / "data"
@@ -28,6 +29,20 @@ def _shared_kernel_cache():
 
 
 _shared_kernel_cache()
+
+
+def _one_blas_thread():
+    """pytest-xdist runs one test process per core: each gets one BLAS thread (a variable
+    the workers inherit). With a thread per core in every process, scipy's logm in the
+    screw-motion references ran 6-15 times slower (the slow random-scene checks of screw
+    motion: 310 s instead of 20 s on two cores)."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+_one_blas_thread()
+
+# collide's kernels are created on import: only now that their cache folder is pinned
+from collide.predicates import triangles_intersect  # noqa: E402
 
 
 def pytest_configure(config):
@@ -77,6 +92,17 @@ def identity_quaternions(n_frames, n_objects, order="wxyz"):
     q = np.zeros((n_frames, n_objects, 4))
     q[..., 0 if order == "wxyz" else 3] = 1.0
     return q
+
+
+@njit(cache=True)
+def meshes_touch(va, fa, vb, fb):
+    """Whether any triangle of (va, fa) meets any of (vb, fb) (closed triangles, exact
+    predicate; brute force over all pairs): float64 (V, 3) vertices, int64 (F, 3) faces."""
+    for i in range(fa.shape[0]):
+        for j in range(fb.shape[0]):
+            if triangles_intersect(va[fa[i]], vb[fb[j]]):
+                return True
+    return False
 
 
 def write_box(path, extents=(1.0, 1.0, 1.0), centre=(0.0, 0.0, 0.0)):

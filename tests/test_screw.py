@@ -10,8 +10,7 @@ import logging
 
 import numpy as np
 import pytest
-from conftest import run_cli, write_box, write_trajectory
-from numba import njit
+from conftest import meshes_touch, run_cli, write_box, write_trajectory
 
 import collide
 from collide import config, motion
@@ -327,15 +326,6 @@ def test_pure_translation_gives_identical_output(tmp_path, example):
 
 # --- random motions against dense sampling -------------------------------------------------------
 
-@njit(cache=True)
-def _touching(va, fa, vb, fb):
-    for i in range(fa.shape[0]):
-        for j in range(fb.shape[0]):
-            if triangles_intersect(va[fa[i]], vb[fb[j]]):
-                return True
-    return False
-
-
 def sampled_contacts(mesh_a, mesh_b, poses_a, poses_b, samples):
     """Times (in frames) at which the meshes touch, sampled ``samples`` times per step under
     the screw motion as scipy's matrix exponential computes it."""
@@ -345,7 +335,7 @@ def sampled_contacts(mesh_a, mesh_b, poses_a, poses_b, samples):
             t = s / samples
             ta = screw_reference(poses_a[k], poses_a[k + 1], t)
             tb = screw_reference(poses_b[k], poses_b[k + 1], t)
-            if _touching(apply(ta, mesh_a.vertices), mesh_a.faces, apply(tb, mesh_b.vertices), mesh_b.faces):
+            if meshes_touch(apply(ta, mesh_a.vertices), mesh_a.faces, apply(tb, mesh_b.vertices), mesh_b.faces):
                 hits.append(k + t)
     return np.array(hits)
 

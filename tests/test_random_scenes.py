@@ -1,8 +1,9 @@
 """Whole scans of small random scenes against independent references.
 
-Discrete: every (frame, object pair) in contact, and the triangle pair reported where
-each contact begins, against brute force in exact rational arithmetic (naive.py) on
-the world vertices the scan computes (packed.world_vertices).
+Discrete: every (frame, object pair) in contact, the triangle pair reported where each
+contact begins and (with triangle_pairs) every intersecting triangle pair, against
+brute force in exact rational arithmetic (naive.py) on the world vertices the scan
+computes (packed.world_vertices).
 Continuous: every sampled moment at which the moving meshes touch (screw motion by
 scipy's matrix exponential, or straight vertex paths) lies in a reported interval of
 its pair, every frame contact does too, and each interval begins where its pair is
@@ -133,7 +134,7 @@ def moving_scene(rng, n_frames=4):
 # --- references ---------------------------------------------------------------------------------
 
 def exact_frame_contacts(meshes, trajectory):
-    """{(frame, a, b): smallest intersecting (tri_a, tri_b)} by exact brute force."""
+    """{(frame, a, b): every intersecting (tri_a, tri_b), sorted} by exact brute force."""
     names, matrix = trajectory["names"], trajectory["matrix"]
     found = {}
     for k in range(matrix.shape[0]):
@@ -141,7 +142,7 @@ def exact_frame_contacts(meshes, trajectory):
         for a, b in itertools.combinations(range(len(names)), 2):
             pairs = triangle_pairs_exact(world[a], meshes[names[a]][1], world[b], meshes[names[b]][1])
             if pairs:
-                found[(k, a, b)] = pairs[0]
+                found[(k, a, b)] = pairs
     return found
 
 
@@ -205,14 +206,20 @@ def test_discrete_scan_matches_exact_brute_force(seeds):
     for seed in seeds:
         rng = np.random.default_rng(seed)
         meshes, trajectory = jumping_scene(rng)
-        c = collide.scan(meshes, trajectory, mode="discrete", workers=int(rng.integers(1, 3))).contacts
+        result = collide.scan(meshes, trajectory, mode="discrete", workers=int(rng.integers(1, 3)),
+                              triangle_pairs=bool(rng.random() < 0.5))
+        c = result.contacts
         expected = exact_frame_contacts(meshes, trajectory)
         found = {(k, a, b) for a, b, first, last in zip(c["object_a"].tolist(), c["object_b"].tolist(),
                                                         c["frame_begin"].tolist(), c["frame_end"].tolist())
                  for k in range(first, last + 1)}
         assert found == set(expected), (seed, sorted(found ^ set(expected)))
         for a, b, first, tri_a, tri_b in zip(c["object_a"], c["object_b"], c["frame_begin"], c["tri_a"], c["tri_b"]):
-            assert (tri_a, tri_b) == expected[(first, a, b)], (seed, first, a, b)
+            assert (tri_a, tri_b) == expected[(first, a, b)][0], (seed, first, a, b)   # the smallest
+        if result.triangle_pairs is not None:   # every intersecting pair, in (frame, a, b, tri_a, tri_b) order
+            t = result.triangle_pairs
+            rows = list(zip(*(t[name].tolist() for name in ("frame", "object_a", "object_b", "tri_a", "tri_b"))))
+            assert rows == sorted((*key, *pair) for key, pairs in expected.items() for pair in pairs), seed
         # intervals are maximal: one pair's intervals are separated by frames apart
         for (a, b), rows in itertools.groupby(sorted(zip(c["object_a"].tolist(), c["object_b"].tolist(),
                                                          c["frame_begin"].tolist(), c["frame_end"].tolist())),

@@ -8,6 +8,7 @@ Continuous: every sampled moment at which the moving meshes touch (screw motion 
 scipy's matrix exponential, or straight vertex paths) lies in a reported interval of
 its pair, every frame contact does too, and each interval begins where its pair is
 touching (python-fcl distance).
+Reading the poses a few frames at a time, with two workers, changes no contact.
 
 The scenes are made to hit the hard cases often: boxes, flat squares and triangle
 soups with repeated or collinear corners, on a 1/8 grid; most discrete scenes are
@@ -20,7 +21,7 @@ import itertools
 
 import numpy as np
 import pytest
-from conftest import meshes_touch
+from conftest import meshes_touch, write_trajectory
 from naive import triangle_pairs_exact
 
 import collide
@@ -266,3 +267,27 @@ def test_continuous_scan_holds_every_sampled_contact(seeds, interpolation):
             assert min(gaps) < 1e-6, (seed, a, b, begin, gaps)
         sampled_total += len(sampled)
     assert sampled_total > 0
+
+
+@pytest.mark.parametrize("seeds", seed_blocks(4, 1, 300))
+def test_pose_blocks_and_workers_leave_the_contacts_unchanged(seeds, tmp_path, monkeypatch):
+    """Poses read from the file two or three frames at a time (each block also holds the
+    next one's first frame), with two workers: the same contacts, bit for bit, as one
+    block in memory with one worker."""
+    from collide.load import POSE_VALUES
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        meshes, trajectory = moving_scene(rng, n_frames=7)
+        mode, interpolation = ("continuous", "screw") if rng.random() < 0.7 else ("discrete", "screw")
+        interpolation = "linear-vertex" if rng.random() < 0.3 else interpolation
+        whole = collide.scan(meshes, trajectory, mode=mode, interpolation=interpolation, warn_angle=180,
+                             workers=1).contacts
+        path = write_trajectory(tmp_path / f"t{seed}.h5", trajectory["time"], trajectory["names"],
+                                matrix=trajectory["matrix"])
+        frames_per_block = int(rng.integers(2, 4))
+        with monkeypatch.context() as patch:
+            patch.setattr(config, "POSE_BLOCK_BYTES", frames_per_block * len(meshes) * POSE_VALUES * 8)
+            blocked = collide.scan(meshes, path, mode=mode, interpolation=interpolation, warn_angle=180,
+                                   workers=2).contacts
+        for name, column in whole.items():
+            np.testing.assert_array_equal(blocked[name], column, err_msg=f"seed {seed}, {name}")

@@ -8,7 +8,8 @@ Continuous: every sampled moment at which the moving meshes touch (screw motion 
 scipy's matrix exponential, or straight vertex paths) lies in a reported interval of
 its pair, every frame contact does too, and each interval begins where its pair is
 touching (python-fcl distance).
-Reading the poses a few frames at a time, with two workers, changes no contact.
+Reading the poses a few frames at a time, with two workers, or scanning on a local Dask
+cluster changes no contact.
 
 The scenes are made to hit the hard cases often: boxes, flat squares and triangle
 soups with repeated or collinear corners, on a 1/8 grid; most discrete scenes are
@@ -291,3 +292,25 @@ def test_pose_blocks_and_workers_leave_the_contacts_unchanged(seeds, tmp_path, m
                                    workers=2).contacts
         for name, column in whole.items():
             np.testing.assert_array_equal(blocked[name], column, err_msg=f"seed {seed}, {name}")
+
+
+@pytest.mark.parametrize("seeds", seed_blocks(3, 1, 300))
+def test_a_dask_cluster_finds_the_same_contacts(seeds):
+    """The same scans as tasks on a local Dask cluster (two single-thread workers in this
+    process): the same contacts, bit for bit, in both modes, with and without
+    triangle_pairs."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        for seed in seeds:
+            rng = np.random.default_rng(seed)
+            meshes, trajectory = moving_scene(rng, n_frames=5)
+            options = {"mode": ("continuous", "discrete")[rng.integers(2)], "warn_angle": 180,
+                       "triangle_pairs": bool(rng.random() < 0.3)}
+            local = collide.scan(meshes, trajectory, workers=1, **options)
+            remote = collide.scan(meshes, trajectory, scheduler=cluster.scheduler_address, **options)
+            for name, column in local.contacts.items():
+                np.testing.assert_array_equal(remote.contacts[name], column, err_msg=f"seed {seed}, {name}")
+            if options["triangle_pairs"]:
+                for name, column in local.triangle_pairs.items():
+                    np.testing.assert_array_equal(remote.triangle_pairs[name], column, err_msg=f"seed {seed}, {name}")

@@ -105,6 +105,29 @@ def meshes_touch(va, fa, vb, fb):
     return False
 
 
+def rotation_about(axis, angle):
+    """Rotation matrix (3, 3) by ``angle`` radians about ``axis`` (Rodrigues' formula)."""
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def rigid_transform(r, p):
+    """The 4 x 4 matrix of rotation r (3, 3) followed by translation p (3,)."""
+    m = np.eye(4)
+    m[:3, :3] = r
+    m[:3, 3] = p
+    return m
+
+
+def quaternion_rotation(q):
+    """Rotation matrix (3, 3) of the unit quaternion q = (w, x, y, z)."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
 def write_box(path, extents=(1.0, 1.0, 1.0), centre=(0.0, 0.0, 0.0)):
     """An axis-aligned box mesh (12 triangles) with exact dyadic coordinates."""
     box = trimesh.creation.box(extents=extents)

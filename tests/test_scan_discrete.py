@@ -1,7 +1,7 @@
 """Discrete scans of scenes whose contacts are known analytically."""
 import numpy as np
 import pytest
-from conftest import identity_quaternions, write_box, write_trajectory
+from conftest import identity_quaternions, quaternion_rotation, write_box, write_trajectory
 
 import collide
 
@@ -194,7 +194,7 @@ def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
         for o in range(3):
             q = rng.normal(size=4)
             q /= np.linalg.norm(q)
-            poses[f, o, :, :3] = collide_rotation(q)
+            poses[f, o, :, :3] = quaternion_rotation(q)
             poses[f, o, :, 3] = rng.uniform(-0.6, 0.6, size=3)
     static = np.zeros(3, bool)
     pairs = build_filters(["a", "b", "c"]).kernel_filter()
@@ -231,14 +231,6 @@ def test_lazy_stamps_answer_like_stamps_set_to_minus_one_up_front(n_rows):
     for block in asked:  # every row of a set block answers as the reference does
         rows = np.arange(block * STAMP_BLOCK, min((block + 1) * STAMP_BLOCK, n_rows))
         assert np.array_equal(stamps[rows], reference[rows])
-
-
-def collide_rotation(q):
-    """Rotation matrix of the unit quaternion q = (w, x, y, z)."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -11,6 +11,8 @@ import logging
 import numpy as np
 import pytest
 from conftest import meshes_touch, run_cli, write_box, write_trajectory
+from conftest import rigid_transform as transform
+from conftest import rotation_about as rot
 
 import collide
 from collide import config, motion
@@ -24,20 +26,6 @@ SLACK = 1e-12
 
 
 # --- references ---------------------------------------------------------------------------------
-
-def rot(axis, angle):
-    """Rotation matrix (3, 3) about a unit axis (Rodrigues)."""
-    axis = np.asarray(axis, float) / np.linalg.norm(axis)
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
-
-
-def transform(r, p):
-    m = np.eye(4)
-    m[:3, :3] = r
-    m[:3, 3] = p
-    return m
-
 
 def screw_reference(t0, t1, t):
     """exp(t log(T1 T0^-1)) T0 by scipy's matrix logarithm and exponential (4, 4)."""

@@ -3,6 +3,7 @@
     python benchmarks/bench_meshsize.py [--triangles 100000] [--frames 50] [--repeat 3] [--workers 1,2]
                                         [--modes discrete,continuous] [--out FOLDER]
     python benchmarks/bench_meshsize.py --triangles 1000000       # the large case
+    python benchmarks/bench_meshsize.py --lift 0.04               # contact made and broken every frame
 
 Scene (deterministic, seed --seed): two rough terrain patches of T triangles each (height
 fields on a regular grid: a few seeded smooth waves plus fine seeded ripples; binary PLY,
@@ -10,7 +11,10 @@ float64). ``ground`` (side 10) is static; ``slab`` (side 6, its own terrain, fac
 slides 2.4 over it in 50 frames while turning 6 deg about the vertical, at the height that
 keeps its deepest point 0.2 % of the side (0.02) inside the ground at every frame (computed
 from the height functions), so the two surfaces touch in a few small, changing patches all
-the time: sliding contact.
+the time: sliding contact. With ``--lift L`` the slab is raised by L at every odd frame
+(0.04: 0.02 clear of the ground), so contact is made and broken at every step: chattering
+contact, where each continuous step must find when contact begins or ends over the whole
+patch.
 
 Measured, every configuration ``--repeat`` times interleaved (medians):
 
@@ -116,6 +120,8 @@ def main(argv=None):
     parser.add_argument("--modes", default="discrete,continuous")
     parser.add_argument("--breakdown-frames", type=int, help="section 3 on the first N frames only (0: skip it)")
     parser.add_argument("--breakdown-repeat", type=int, default=3)
+    parser.add_argument("--lift", type=float, default=0.0,
+                        help="raise the slab by this much at odd frames (contact made and broken every step)")
     parser.add_argument("--out", help="folder for the scene and results (default: a temporary folder, removed)")
     args = parser.parse_args(argv)
     workers_list = sorted(set(parse_workers(args.workers)) | {1})
@@ -130,10 +136,12 @@ def main(argv=None):
         ground = height_field(ground_h, GROUND, args.triangles)
         slab = height_field(slab_h, SLAB, args.triangles, sign=-1.0)
         poses = slab_poses(n, ground_h, slab)
+        poses[1::2, :, 2, 3] += args.lift
         meshes_dir, traj = write_scene(folder, {"ground": ground, "slab": slab}, ["slab"], poses, dt=DT)
         size_mb = sum(p.stat().st_size for p in meshes_dir.glob("*.ply")) / 1e6
         print(f"scene in {folder}: ground {len(ground.faces)} and slab {len(slab.faces)} triangles "
-              f"(binary PLY, {size_mb:.0f} MB), {n} frames; slab 0.02 deep in the ground at every frame")
+              f"(binary PLY, {size_mb:.0f} MB), {n} frames; slab 0.02 deep in the ground at every frame"
+              + (f" but the odd ones, raised by {args.lift}" if args.lift else ""))
 
         scan_env = ScanEnv(folder)
         cold = []

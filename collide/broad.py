@@ -45,8 +45,18 @@ import math
 import numpy as np
 
 from .jit import njit
-from .motion import M_ETA, M_THETA, box_deviation, chord_interval, chord_interval_of, pose_tuple, sphere_deviation
+from .motion import (
+    M_ETA,
+    M_THETA,
+    box_deviation,
+    chord_interval,
+    chord_interval_of,
+    pose_tuple,
+    sphere_deviation,
+    world_interval_of,
+)
 from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
+from .windows import box_window
 
 RULE_POSE = 0
 RULE_SWEPT = 1
@@ -543,6 +553,59 @@ def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, 
 #: at most two and appends at most one leaf pair, so room for a batch is made before it and
 #: no buffer is rebound inside (a rebound array costs reference counting at every step)
 DESCENT_BATCH = 64
+
+
+@njit(cache=True)
+def leaf_pair_windows(lo, hi, rp0_a, rp1_a, rp0_b, rp1_b, motion_a, motion_b, dist_tol, leaves, n_leaves):
+    """When, within the step, the leaves of each of the leaf pairs leaves[:n_leaves] can
+    come within dist_tol: float64 (n_leaves, 2) rows (t_lo, t_hi), fractions of the step,
+    t_lo > t_hi when never. Each leaf's box is placed in the world at both ends of the step
+    (A by poses rp0_a, rp1_a (3, 4), B by rp0_b, rp1_b); at fraction t each of its points
+    lies in the blend (1 - t) start box + t end box, up to how far its path strays from
+    its chord (box_deviation under motion rows motion_a, motion_b, and their rounding
+    margins): windows.box_window of the two blended boxes. The margin is at least that
+    of narrow.swept_candidates for any triangle pair of the two leaves, plus rounding, so
+    a leaf pair's window holds each of its triangle pairs' windows."""
+    windows = np.empty((n_leaves, 2))
+    for k in range(n_leaves):
+        la = leaves[k, 0]
+        lb = leaves[k, 1]
+        box_a = _moving_node_box(node_box(lo, hi, la), pose_tuple(rp0_a), pose_tuple(rp1_a))
+        box_b = _moving_node_box(node_box(lo, hi, lb), pose_tuple(rp0_b), pose_tuple(rp1_b))
+        largest = max(box_a[12], box_a[13], box_a[14], box_b[12], box_b[13], box_b[14])
+        margin = (dist_tol + (box_deviation(motion_a, lo[la], hi[la], rp0_a)
+                              + box_deviation(motion_b, lo[lb], hi[lb], rp0_b))
+                  + (motion_a[M_ETA] + motion_b[M_ETA])) + _NESTED_ULPS * largest
+        windows[k, 0], windows[k, 1] = box_window(box_a, box_b, margin)
+    return windows
+
+
+#: rounding allowance (relative to the largest |coordinate|) that keeps a leaf pair's window
+#: (leaf_pair_windows: boxes placed by world_interval_of) around those of its triangle pairs
+#: (corners placed by packed.to_world): both place the same points, each within a few ulps
+_NESTED_ULPS = 64.0 * 2.0 ** -52
+
+
+@njit(cache=True)
+def _moving_node_box(box, rp0, rp1):
+    """A node's box (node_box 6-tuple) placed by pose tuples rp0 and rp1 at both ends of
+    the step, in windows.moving_box's layout (15-tuple: for axis c, lo and hi at the
+    start, lo and hi at the end, at 4 c to 4 c + 3; the largest |coordinate| at 12 + c)."""
+    x0, x1 = world_interval_of(box, rp0, 0)
+    x2, x3 = world_interval_of(box, rp1, 0)
+    y0, y1 = world_interval_of(box, rp0, 1)
+    y2, y3 = world_interval_of(box, rp1, 1)
+    z0, z1 = world_interval_of(box, rp0, 2)
+    z2, z3 = world_interval_of(box, rp1, 2)
+    return (x0, x1, x2, x3, y0, y1, y2, y3, z0, z1, z2, z3, max(abs(x0), abs(x1), abs(x2), abs(x3)),
+            max(abs(y0), abs(y1), abs(y2), abs(y3)), max(abs(z0), abs(z1), abs(z2), abs(z3)))
+
+
+@njit(cache=True)
+def _still_node_box(box):
+    """A node's own box (node_box 6-tuple), not moving, in _moving_node_box's layout."""
+    return (box[0], box[3], box[0], box[3], box[1], box[4], box[1], box[4], box[2], box[5], box[2], box[5],
+            max(abs(box[0]), abs(box[3])), max(abs(box[1]), abs(box[4])), max(abs(box[2]), abs(box[5])))
 
 
 @njit(cache=True)

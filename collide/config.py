@@ -50,6 +50,15 @@ SCREW_HALF_TURN_SIN = 1e-12
 #: more, tighter sub-steps. Unitless.
 SUBSTEP_DEVIATION_REL = 1e-3
 
+#: Continuous mode: an object pair touching at one frame of a step only (a contact that
+#: ends or begins in it) whose swept BVH descent finds at least this many overlapping leaf
+#: pairs has them read in the order they can meet, and its search stops at the first
+#: (last) contact; fewer are searched all at once, which costs less per leaf pair. A
+#: touching patch moving off or onto the other object reaches thousands (benchmarks/
+#: bench_meshsize.py --lift 0.04: 1 700 per step); the searches at 1000 bodies
+#: (bench_bodies.py) mostly 20-40. Only affects speed. Leaf pairs.
+ONE_SIDED_LEAVES = 256
+
 #: Linear-vertex interpolation: scan warns where the straight vertex paths depart
 #: from the rigid (screw) motion by more than this fraction of the object's size
 #: (its bounding-sphere diameter). Unitless.

@@ -227,6 +227,90 @@ def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_
     return out, n, windows
 
 
+class Pending(NamedTuple):
+    """Triangle pairs waiting to be tried, first the smallest (key, tri_a, tri_b): a binary
+    heap (swept._one_sided_window). Grown by pending_push, which returns it."""
+    keys: np.ndarray   #: float64 (cap,)
+    pairs: np.ndarray  #: int64 (cap, 2): tri_a, tri_b
+    size: np.ndarray   #: int64 (1,): rows in use
+
+
+@njit(cache=True)
+def new_pending():
+    return Pending(np.empty(64), np.empty((64, 2), np.int64), np.zeros(1, np.int64))
+
+
+@njit(cache=True)
+def pending_size(pending):
+    return pending.size[0]
+
+
+@njit(cache=True)
+def pending_first_key(pending):
+    """The smallest key (pending not empty)."""
+    return pending.keys[0]
+
+
+@njit(cache=True)
+def _comes_first(pending, i, j):
+    """Row i of the heap comes before row j: smaller key, then smaller (tri_a, tri_b)."""
+    keys, pairs = pending.keys, pending.pairs
+    if keys[i] != keys[j]:
+        return keys[i] < keys[j]
+    if pairs[i, 0] != pairs[j, 0]:
+        return pairs[i, 0] < pairs[j, 0]
+    return pairs[i, 1] < pairs[j, 1]
+
+
+@njit(cache=True)
+def _swap(pending, i, j):
+    keys, pairs = pending.keys, pending.pairs
+    keys[i], keys[j] = keys[j], keys[i]
+    for c in range(2):
+        pairs[i, c], pairs[j, c] = pairs[j, c], pairs[i, c]
+
+
+@njit(cache=True)
+def pending_push(pending, key, tri_a, tri_b):
+    """Add (key, tri_a, tri_b); returns pending (grown when full)."""
+    n = pending.size[0]
+    if n == pending.keys.shape[0]:
+        keys = np.empty(2 * n)
+        for i in range(n):
+            keys[i] = pending.keys[i]
+        pending = Pending(keys, grown_rows(pending.pairs, n), pending.size)
+    pending.keys[n] = key
+    pending.pairs[n, 0] = tri_a
+    pending.pairs[n, 1] = tri_b
+    pending.size[0] = n + 1
+    i = n
+    while i > 0 and _comes_first(pending, i, (i - 1) // 2):
+        _swap(pending, i, (i - 1) // 2)
+        i = (i - 1) // 2
+    return pending
+
+
+@njit(cache=True)
+def pending_pop(pending):
+    """Remove and return the first row (key, tri_a, tri_b) (pending not empty)."""
+    key, tri_a, tri_b = pending.keys[0], pending.pairs[0, 0], pending.pairs[0, 1]
+    n = pending.size[0] - 1
+    pending.size[0] = n
+    if n > 0:
+        _swap(pending, 0, n)
+        i = 0
+        while True:
+            first = i
+            for child in (2 * i + 1, 2 * i + 2):
+                if child < n and _comes_first(pending, child, first):
+                    first = child
+            if first == i:
+                break
+            _swap(pending, i, first)
+            i = first
+    return key, tri_a, tri_b
+
+
 @njit(cache=True)
 def stable_order(keys):
     """int64 (n,): the stable ascending argsort of keys (n,) (np.argsort kind="mergesort"),
@@ -314,7 +398,7 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
         k = by_start[i]
         if windows[k, 0] > t_first:
             break  # no later pair's boxes meet before the contact found
-        t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
+        t = candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
                                t_first, np.bool_(False), corners, work, counts)
         if t < t_first or (t == t_first and t < np.inf and (candidates[k, 0] < best_a or (
@@ -328,7 +412,7 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
         k = by_end[i]
         if (find_first and t_first == np.inf) or t_last == 1.0 or windows[k, 1] < t_last:
             break  # no remaining pair's boxes meet after the contact found
-        t = _candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
+        t = candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
                                t_last, np.bool_(True), corners, work, counts)
         t_last = max(t_last, t)
@@ -336,7 +420,7 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
 
 
 @njit(cache=True)
-def _candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, world1, world_base_a,
+def candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, world1, world_base_a,
                        world_base_b, motion_a, motion_b, time_tol, dist_tol, limit, backwards, corners, work,
                        counts):
     """motion.triangle_pair_contact of triangles tri_a of A and tri_b of B; corners (4, 3, 3)

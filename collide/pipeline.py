@@ -426,8 +426,8 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
     numbered from the block's first frame."""
     static_hits, _, counts = _static_hits(ps, poses, static, filters, False)
     results = _run_chunks(_scan_steps, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
-                          (n_frames, INTERPOLATIONS[interpolation], time_tol, dist_tol), poses.shape[0] - 1, workers,
-                          progress, scheduler)
+                          (n_frames, INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES),
+                          poses.shape[0] - 1, workers, progress, scheduler)
     hits = [r[0] for r in results]
     if static_hits is not None:
         hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
@@ -436,7 +436,7 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
         _total_counts(counts + [r[3] for r in results]))
 
 
-def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, time_tol, dist_tol):
+def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, time_tol, dist_tol, one_sided_leaves):
     """The chunk of _run_steps for steps [start, stop): the frame test of frame start,
     then scan_intervals finding the other frames' contacts itself. Returns (hits of
     frames (start if start == 0, else start + 1) to min(stop, n_frames - 1), ids,
@@ -444,7 +444,7 @@ def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, 
     first, _, first_counts = scan_frames(ps, poses, static, pairs, start, start + 1, False, True)
     touching, tris = frame_contacts(first, static, poses.shape[1])
     hits, ids, fractions, counts = scan_intervals(ps, poses, static, pairs, touching, tris, start, stop, True,
-                                                  interpolation, time_tol, dist_tol)
+                                                  interpolation, time_tol, dist_tol, one_sided_leaves)
     if start == 0:
         hits = np.concatenate([first, hits])
     return hits[hits[:, HIT_FRAME] < n_frames], ids, fractions, first_counts + counts
@@ -500,8 +500,8 @@ def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_t
     touching, touching_tris = frame_contacts(hits, static, poses.shape[1])
     results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static), touching,
                                            touching_tris),
-                          (False, INTERPOLATIONS[interpolation], time_tol, dist_tol), n_steps, workers, progress,
-                          scheduler)
+                          (False, INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES),
+                          n_steps, workers, progress, scheduler)
     return (np.concatenate([r[1] for r in results]).reshape(-1, SWEPT_WIDTH),
             np.concatenate([r[2] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[3] for r in results]))
 
@@ -791,7 +791,7 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     scan_frames(ps, poses, static, pair_filter, 0, 0, False, True)
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True,
-                       INTERPOLATIONS[interpolation], time_tol, dist_tol)
+                       INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES)
     smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
     compile_contact_points(ps, poses)
 

@@ -54,12 +54,14 @@ from .broad import (
     RULE_SWEPT,
     RULE_SWEPT_RIGID,
     abs_rotation,
+    leaf_pair_windows,
     node_box,
     oriented_boxes_overlap,
     relative_pose,
     sweep_and_prune,
     with_room,
 )
+from .ccd import ccd_work
 from .discrete import (
     _frame_keys,
     _pair_triangles,
@@ -87,9 +89,16 @@ from .motion import (
 )
 from .narrow import (
     append_row,
+    candidate_contact,
     candidates_contact_window,
     intersecting_triangles,
+    new_pending,
     new_stamps,
+    pending_first_key,
+    pending_pop,
+    pending_push,
+    pending_size,
+    stable_order,
     stamp_is,
     swept_candidates,
 )
@@ -401,7 +410,7 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers
 
 @njit(cache=True, inline="always")
 def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, touch0, touch1,
-                 find_touch1, state, buffers, counts):
+                 find_touch1, one_sided_leaves, state, buffers, counts):
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
     (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
@@ -411,7 +420,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     swept spheres meet (spheres_meet). state: Step. Returns (buffers, t_first, t_last,
     tri_a, tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
-    always rigid."""
+    always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window)."""
     pair_margin = margin[a] + margin[b] + dist_tol
     hit_a = hit_b = -1
     mesh_a = ps.object_mesh[a]
@@ -431,6 +440,22 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
                                           buffers.leaves, counts)
     if n_leaves == 0:
         return Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs), np.inf, -np.inf, -1, -1, -1, -1
+    if n_leaves >= one_sided_leaves:  # a large search: if the pair touches at one end only, search the other
+        buffers = Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs)
+        if find_touch1:
+            buffers, hit_a, hit_b = _leaf_hit(ps, rp1, k + 1, a, b, static, state.frame, state.pair, leaves,
+                                              n_leaves, buffers, counts)
+            touch1 = hit_a >= 0
+        if touch0 != touch1:
+            buffers, t, tri_a, tri_b = _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves,
+                                                         np.bool_(touch0), time_tol, dist_tol, state, buffers,
+                                                         counts)
+            if touch0:
+                return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
+            return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
+        if find_touch1:  # touching at neither end: the plain search of both, the frame test done
+            find_touch1 = False
+        stack, leaves = buffers.stack, buffers.leaves
     place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.stamp0, state.world0, state.stamp1,
                       state.world1)
     tri_pairs, n_candidates, windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_leaves, leaves,
@@ -452,6 +477,72 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
         t_first = min(t_first, 1.0)
         t_last = 1.0
     return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
+
+
+@njit(cache=True)
+def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, time_tol, dist_tol, state,
+                      buffers, counts):
+    """The first contact of objects a and b during step k (backwards: the last), for a pair
+    touching at the step's end (start), from the leaf pairs buffers.leaves[:n_leaves] of
+    their swept descent: the answer of _search (narrow.candidates_contact_window with
+    find_first xor find_last), value for value, without the triangle pairs it would not
+    reach. That search tries the pairs in the order their windows open (backwards:
+    close), smallest (tri_a, tri_b) first among equals, and stops at the first that
+    cannot move the contact found. Here the leaf pairs are opened in that order of their
+    own windows (broad.leaf_pair_windows, which hold their triangle pairs'), and a
+    triangle pair is tried once no unopened leaf pair can hold one that comes before it:
+    the same pairs are tried in the same order with the same limits. Returns (buffers,
+    t, tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none touches; tri_a,
+    tri_b forwards only."""
+    leaves = buffers.leaves
+    windows = leaf_pair_windows(ps.node_lo, ps.node_hi, rp0[a], rp1[a], rp0[b], rp1[b], motion[a], motion[b],
+                                dist_tol, leaves, n_leaves)
+    keys = np.empty(n_leaves)  # the order of the search: window start, backwards minus window end
+    for i in range(n_leaves):
+        if windows[i, 0] > windows[i, 1]:
+            keys[i] = np.inf  # never near: nor are its triangle pairs
+        else:
+            keys[i] = -windows[i, 1] if backwards else windows[i, 0]
+    order = stable_order(keys)
+    pending = new_pending()
+    corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
+    work = ccd_work()
+    face_a = ps.face_start[ps.object_mesh[a]]
+    face_b = ps.face_start[ps.object_mesh[b]]
+    t = -np.inf if backwards else np.inf
+    best_a = best_b = -1
+    tri_pairs = buffers.tri_pairs
+    opened = 0
+    while True:
+        bound = -t if backwards else t  # keys beyond it cannot move the contact found
+        leaf_key = keys[order[opened]] if opened < n_leaves else np.inf
+        if pending_size(pending) > 0 and pending_first_key(pending) < leaf_key:
+            key, tri_a, tri_b = pending_pop(pending)
+            if key > bound or (backwards and t == 1.0):
+                break
+            found = candidate_contact(tri_a, tri_b, ps.faces, face_a, face_b, state.world0, state.world1,
+                                      ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol,
+                                      dist_tol, t, backwards, corners, work, counts)
+            if backwards:
+                t = max(t, found)
+            elif found < t or (found == t and found < np.inf and (tri_a < best_a or (
+                    tri_a == best_a and tri_b < best_b))):
+                t = found  # ties keep the smaller pair
+                best_a = tri_a
+                best_b = tri_b
+            continue
+        if leaf_key > bound or leaf_key == np.inf or (backwards and t == 1.0):
+            break  # nothing pending comes before it either
+        one = leaves[order[opened]:order[opened] + 1]
+        opened += 1
+        place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, 1, state.stamp0, state.world0, state.stamp1,
+                          state.world1)
+        tri_pairs, n, tri_windows = _candidates(ps, motion, state.world0, state.world1, a, b, 1, one, dist_tol,
+                                                tri_pairs, counts)
+        for r in range(n):
+            pending = pending_push(pending, -tri_windows[r, 1] if backwards else tri_windows[r, 0], tri_pairs[r, 0],
+                                   tri_pairs[r, 1])
+    return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
 
 @njit(cache=True)
@@ -482,7 +573,7 @@ class Step(NamedTuple):
 
 @njit(cache=True, nogil=True)
 def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, find_frames,
-                   interpolation, time_tol, dist_tol):
+                   interpolation, time_tol, dist_tol, one_sided_leaves):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
@@ -495,7 +586,9 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     there (a pair whose swept test finds nothing cannot touch at the step's last
     frame; one that needs a swept search gets its frame test from the swept leaf
     pairs, without a descent of its own); interpolation: a motion.INTERPOLATIONS code;
-    time_tol in units of the step; dist_tol in length units. Returns (hits int64 (H,
+    time_tol in units of the step; dist_tol in length units; one_sided_leaves:
+    config.ONE_SIDED_LEAVES (how large a search of one end of a contact reads its leaf
+    pairs in time order; only affects speed). Returns (hits int64 (H,
     HIT_WIDTH), the frame tests' hits (first pair found; none without find_frames),
     ids int64 (R, SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64
     (COUNT_WIDTH,)), see the module docstring.
@@ -564,7 +657,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
                     ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, np.bool_(touch0),
-                    np.bool_(touch1), np.bool_(find_frames and not touch0), state, buffers, counts)
+                    np.bool_(touch1), np.bool_(find_frames and not touch0), one_sided_leaves, state, buffers,
+                    counts)
                 if not touch0:
                     hit_a, hit_b = found_a, found_b
                 elif t_first < np.inf:

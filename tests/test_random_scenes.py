@@ -34,6 +34,7 @@ BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0,
 #: a sampled contact may lie this far (in frames) outside the reported interval: the
 #: samples' poses are rounded differently from the scan's
 SLACK = 1e-9
+ONE_SIDED_LEAVES = config.ONE_SIDED_LEAVES  #: the default (some tests draw it or 0)
 
 
 def seed_blocks(default, slow_blocks, block):
@@ -218,11 +219,14 @@ def test_discrete_scan_matches_exact_brute_force(seeds):
     assert positives >= len(seeds) // 2   # the scenes touch often: the checks above are not empty
 
 
+@pytest.mark.parametrize("one_sided", [False, True], ids=["searches-at-once", "one-sided-in-time-order"])
 @pytest.mark.parametrize("interpolation", ["screw", "linear-vertex"])
 @pytest.mark.parametrize("seeds", seed_blocks(2, 2, 250))
-def test_continuous_scan_holds_every_sampled_contact(seeds, interpolation):
+def test_continuous_scan_holds_every_sampled_contact(seeds, interpolation, one_sided, monkeypatch):
     fcl = pytest.importorskip("fcl")
     pytest.importorskip("scipy")
+    if one_sided:  # every search of one end of a contact reads its leaf pairs in time order, however few
+        monkeypatch.setattr(config, "ONE_SIDED_LEAVES", 0)
     sampled_total = 0
     for seed in seeds:
         rng = np.random.default_rng(seed)
@@ -267,6 +271,7 @@ def test_pose_blocks_and_workers_leave_the_contacts_unchanged(seeds, tmp_path, m
         meshes, trajectory = moving_scene(rng, n_frames=7)
         mode = "continuous" if rng.random() < 0.7 else "discrete"
         interpolation = "linear-vertex" if rng.random() < 0.3 else "screw"
+        monkeypatch.setattr(config, "ONE_SIDED_LEAVES", 0 if rng.random() < 0.5 else ONE_SIDED_LEAVES)
         whole = collide.scan(meshes, trajectory, mode=mode, interpolation=interpolation, warn_angle=180,
                              workers=1).contacts
         path = write_trajectory(tmp_path / f"t{seed}.h5", trajectory["time"], trajectory["names"],
@@ -278,6 +283,23 @@ def test_pose_blocks_and_workers_leave_the_contacts_unchanged(seeds, tmp_path, m
                                    workers=2).contacts
         for name, column in whole.items():
             np.testing.assert_array_equal(blocked[name], column, err_msg=f"seed {seed}, {name}")
+
+
+@pytest.mark.parametrize("seeds", seed_blocks(4, 1, 300))
+def test_frame_contacts_from_the_discrete_scan_give_the_same_contacts(seeds, monkeypatch):
+    """--triangle-pairs takes a continuous scan's frame contacts from the discrete scan
+    instead of finding them in the swept kernel: the same contacts, bit for bit, with the
+    searches of one end of a contact in time order or not (config.ONE_SIDED_LEAVES)."""
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        meshes, trajectory = moving_scene(rng, n_frames=6)
+        interpolation = "linear-vertex" if rng.random() < 0.3 else "screw"
+        monkeypatch.setattr(config, "ONE_SIDED_LEAVES", 0 if rng.random() < 0.5 else ONE_SIDED_LEAVES)
+        found = collide.scan(meshes, trajectory, mode="continuous", interpolation=interpolation, warn_angle=180)
+        given = collide.scan(meshes, trajectory, mode="continuous", interpolation=interpolation, warn_angle=180,
+                             triangle_pairs=True)
+        for name, column in found.contacts.items():
+            np.testing.assert_array_equal(given.contacts[name], column, err_msg=f"seed {seed}, {name}")
 
 
 @pytest.mark.parametrize("seeds", seed_blocks(3, 1, 300))

@@ -34,6 +34,16 @@ at all if no triangle pair's moving boxes come near each other over the step
 (they would at its end if two triangles touched there). So a continuous scan
 costs one broad phase and, for most pairs, one descent per step instead of two.
 
+A search for one end only (a contact that ends or begins in the step) stops at
+the first triangle pair that cannot move the answer, in the order of their
+windows. When the descent finds many leaf pairs (a large patch lifting off or
+landing: config.ONE_SIDED_LEAVES), their triangle pairs are not all listed first:
+the leaf pairs are opened in the order of their own windows, which hold their
+triangle pairs', so only the triangle pairs the search reaches are computed, and
+in the same order (_one_sided_window: the same contacts, bit for bit). A pair
+apart at the step's start then gets its frame test on the leaf pairs first, to
+know whether a contact begins.
+
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
 sub-steps (motion.substeps), each a small screw motion of its own with tight

@@ -401,9 +401,8 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
         t = candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
                                world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
                                t_first, np.bool_(False), corners, work, counts)
-        if t < t_first or (t == t_first and t < np.inf and (candidates[k, 0] < best_a or (
-                candidates[k, 0] == best_a and candidates[k, 1] < best_b))):
-            t_first = t  # ties keep the smaller pair
+        if comes_first(t, candidates[k, 0], candidates[k, 1], t_first, best_a, best_b):
+            t_first = t
             best_a = candidates[k, 0]
             best_b = candidates[k, 1]
     t_last = t_first if find_first else -np.inf  # the last contact is no earlier than the first
@@ -417,6 +416,14 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
                                t_last, np.bool_(True), corners, work, counts)
         t_last = max(t_last, t)
     return t_first, t_last, best_a, best_b
+
+
+@njit(cache=True)
+def comes_first(t, tri_a, tri_b, t_first, best_a, best_b):
+    """Contact time t of triangle pair (tri_a, tri_b) replaces the earliest one found so far,
+    t_first of (best_a, best_b): it is earlier, or as early (and finite) with the smaller
+    pair, so that ties keep the smaller pair whatever the order they are found in."""
+    return t < t_first or (t == t_first and t < np.inf and (tri_a < best_a or (tri_a == best_a and tri_b < best_b)))
 
 
 @njit(cache=True)

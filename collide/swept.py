@@ -101,6 +101,7 @@ from .narrow import (
     append_row,
     candidate_contact,
     candidates_contact_window,
+    comes_first,
     intersecting_triangles,
     new_pending,
     new_stamps,
@@ -535,9 +536,8 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
                                       dist_tol, t, backwards, corners, work, counts)
             if backwards:
                 t = max(t, found)
-            elif found < t or (found == t and found < np.inf and (tri_a < best_a or (
-                    tri_a == best_a and tri_b < best_b))):
-                t = found  # ties keep the smaller pair
+            elif comes_first(found, tri_a, tri_b, t, best_a, best_b):
+                t = found
                 best_a = tri_a
                 best_b = tri_b
             continue

@@ -124,15 +124,19 @@ def _without_frame_contacts(monkeypatch):
     monkeypatch.setattr(pipeline, "frame_contacts", nothing_known)
 
 
+@pytest.mark.parametrize("one_sided", [False, True], ids=["searches-at-once", "one-sided-in-time-order"])
 @pytest.mark.parametrize("interpolation", ["screw", "linear-vertex"])
-def test_frame_contacts_spare_searches_with_the_same_contacts(tmp_path, monkeypatch, interpolation):
+def test_frame_contacts_spare_searches_with_the_same_contacts(tmp_path, monkeypatch, interpolation, one_sided):
     """A box slides along a bar that bounces and turns, and the bar hits a post: contacts
     lasting several frames each (five intervals). Steps touching at both frames are not
     searched, steps touching at one frame are searched for the other end only; the
     contacts equal those of the full certified search of every step, with less work
     (the --triangle-pairs path, which takes the frame contacts from the discrete scan
     rather than from the swept kernel, with those contacts hidden from the swept
-    kernel)."""
+    kernel). With ``one_sided``, every search for one end opens its leaf pairs in time
+    order (config.ONE_SIDED_LEAVES = 0), which must not change a bit either."""
+    if one_sided:
+        monkeypatch.setattr(config, "ONE_SIDED_LEAVES", 0)
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     write_box(meshes / "bar.stl", extents=(4.0, 0.5, 0.5))

@@ -5,6 +5,7 @@ bad input, 3 internal error, 130 interrupted (Ctrl-C), 128 + N for signal N
 (143 SIGTERM, 129 SIGHUP). Data goes to stdout; logs, warnings, progress and
 errors to stderr.
 """
+import gc
 import os
 import signal
 import sys
@@ -33,6 +34,11 @@ if _AS_PROGRAM:
     for _signum in _STOP_SIGNALS:
         if signal.getsignal(_signum) in (signal.default_int_handler, signal.SIG_DFL):
             signal.signal(_signum, _stop_quietly)
+    # Starting up creates hundreds of thousands of objects that live as long as the process
+    # (click here; numpy, numba, h5py and trimesh once a command runs), which the garbage
+    # collector would go through again and again while they are made: 0.1-0.2 s of a scan.
+    # It runs again, leaving them out, once the engine is imported (_engine_imported).
+    gc.disable()
 
 import json  # noqa: E402
 import logging  # noqa: E402
@@ -388,17 +394,19 @@ def scan(meshes, trajectory, output, mode, interpolation, warn_angle, ignore, on
         bar.update(position - state["done"])
         state["done"] = position
 
+    run_scan = collide.scan  # imports the engine
+    _engine_imported()
     from collide.jit_events import report_to
     if _state["verbosity"] >= 0:  # -q: only the log line, which -q silences
         report_to(sys.stderr, live=sys.stderr.isatty())
     try:
-        result = collide.scan(meshes, trajectory, mode=mode, split=split, leaf_size=leaf_size,
-                              triangle_pairs=triangle_pairs, frames=frames, workers=workers,
-                              scheduler=scheduler, time_tol=time_tol, interpolation=interpolation,
-                              warn_angle=warn_angle, ignore=ignore, only=only, glob=glob,
-                              output=output, progress=progress, stage=stage,
-                              command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
-                              allow_external_data=allow_external_data, cache=not no_cache)
+        result = run_scan(meshes, trajectory, mode=mode, split=split, leaf_size=leaf_size,
+                          triangle_pairs=triangle_pairs, frames=frames, workers=workers,
+                          scheduler=scheduler, time_tol=time_tol, interpolation=interpolation,
+                          warn_angle=warn_angle, ignore=ignore, only=only, glob=glob,
+                          output=output, progress=progress, stage=stage,
+                          command=" ".join(["collide"] + sys.argv[1:]), max_memory=max_memory,
+                          allow_external_data=allow_external_data, cache=not no_cache)
     finally:
         report_to(None)
         if bar is not None:
@@ -678,6 +686,16 @@ def main(argv=None):
     if _AS_PROGRAM:
         _ignore_late_signals()
     sys.exit(code)
+
+
+def _engine_imported():
+    """As the program: the engine's modules, imported, stay for the whole run; the garbage
+    collector (off while starting up, see the module top) runs again, without them
+    (gc.freeze), before the scan loads its inputs. Other commands are short and end with
+    it off; code that calls main in its own process keeps its collector as it was."""
+    if _AS_PROGRAM:
+        gc.freeze()
+        gc.enable()
 
 
 def _ignore_late_signals():

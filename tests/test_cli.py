@@ -61,6 +61,29 @@ def _same_output(a, b):
         {k: v for k, v in b.items() if k not in ("seconds", "cache")}
 
 
+def test_the_garbage_collector_is_off_only_while_the_program_starts(two_boxes, tmp_path):
+    """As the program, collide scan collects garbage again (leaving the engine's modules out)
+    once the engine is imported, so a long scan's memory is collected as usual; code that
+    calls main in its own process finds its collector as it was, after a scan too."""
+    import gc
+
+    from conftest import run_in_process
+    meshes, traj = two_boxes
+    program = ("import atexit, gc, sys\n"
+               "def report():\n"
+               "    print('collector', gc.isenabled(), gc.get_freeze_count() > 0, file=sys.stderr)\n"
+               "atexit.register(report)\n"
+               "sys.argv[0] = 'collide'\n"
+               "from collide_cli.main import main\nmain(sys.argv[1:])\n")
+    proc = subprocess.run([sys.executable, "-c", program, "scan", str(meshes), str(traj), "-o",
+                           str(tmp_path / "a.h5")], capture_output=True, text=True, timeout=300)
+    assert proc.returncode in (0, 1), proc.stderr
+    assert "collector True True" in proc.stderr, proc.stderr
+    assert gc.isenabled()
+    assert run_in_process("scan", meshes, traj, "-o", tmp_path / "b.h5").returncode in (0, 1)
+    assert gc.isenabled()
+
+
 def test_scan_writes_spec_file_and_summary(two_boxes, tmp_path):
     meshes, traj = two_boxes
     out = tmp_path / "contacts.h5"

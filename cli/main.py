@@ -475,6 +475,7 @@ def validate(trajectory, meshes, allow_external_data, max_memory):
 def inspect(meshes, splits, leaf_size, fmt):
     """Mesh and BVH statistics for every mesh in MESHES, per split rule."""
     from collide.inspect import inspect_meshes
+    _engine_imported()  # inspect builds BVHs, compiling their kernels on a first run
     rows = inspect_meshes(meshes, splits or config.SPLIT_RULES, leaf_size)
     if fmt == "json":
         click.echo(_json(rows, indent=1))
@@ -659,6 +660,7 @@ def warmup(modes, splits, workers):
     cache makes this a fraction of a second."""
     from collide.jit import kernel_cache_dir
     from collide.warmup import warm_up
+    _engine_imported()  # warmup compiles in this process too
 
     def progress(units, seconds):
         click.echo(f"{units}: " + ("failed (a scan compiles what it needs itself)" if seconds is None
@@ -691,8 +693,9 @@ def main(argv=None):
 def _engine_imported():
     """As the program: the engine's modules, imported, stay for the whole run; the garbage
     collector (off while starting up, see the module top) runs again, without them
-    (gc.freeze), before the scan loads its inputs. Other commands are short and end with
-    it off; code that calls main in its own process keeps its collector as it was."""
+    (gc.freeze), before the scan loads its inputs (likewise before inspect and warmup,
+    which may compile kernels here). The other commands are short and end with it off;
+    code that calls main in its own process keeps its collector as it was."""
     if _AS_PROGRAM:
         gc.freeze()
         gc.enable()

@@ -602,13 +602,6 @@ def _moving_node_box(box, rp0, rp1):
 
 
 @njit(cache=True)
-def _still_node_box(box):
-    """A node's own box (node_box 6-tuple), not moving, in _moving_node_box's layout."""
-    return (box[0], box[3], box[0], box[3], box[1], box[4], box[1], box[4], box[2], box[5], box[2], box[5],
-            max(abs(box[0]), abs(box[3])), max(abs(box[1]), abs(box[4])), max(abs(box[2]), abs(box[5])))
-
-
-@njit(cache=True)
 def with_room(rows, n, need):
     """rows (cap, w), grown (grown_rows, first n rows kept) until it has at least ``need`` rows."""
     while rows.shape[0] < need:

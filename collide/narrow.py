@@ -252,7 +252,7 @@ def pending_first_key(pending):
 
 
 @njit(cache=True)
-def _comes_first(pending, i, j):
+def _heap_before(pending, i, j):
     """Row i of the heap comes before row j: smaller key, then smaller (tri_a, tri_b)."""
     keys, pairs = pending.keys, pending.pairs
     if keys[i] != keys[j]:
@@ -284,7 +284,7 @@ def pending_push(pending, key, tri_a, tri_b):
     pending.pairs[n, 1] = tri_b
     pending.size[0] = n + 1
     i = n
-    while i > 0 and _comes_first(pending, i, (i - 1) // 2):
+    while i > 0 and _heap_before(pending, i, (i - 1) // 2):
         _swap(pending, i, (i - 1) // 2)
         i = (i - 1) // 2
     return pending
@@ -302,7 +302,7 @@ def pending_pop(pending):
         while True:
             first = i
             for child in (2 * i + 1, 2 * i + 2):
-                if child < n and _comes_first(pending, child, first):
+                if child < n and _heap_before(pending, child, first):
                     first = child
             if first == i:
                 break
@@ -399,8 +399,8 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
         if windows[k, 0] > t_first:
             break  # no later pair's boxes meet before the contact found
         t = candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
-                               world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
-                               t_first, np.bool_(False), corners, work, counts)
+                              world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
+                              t_first, np.bool_(False), corners, work, counts)
         if comes_first(t, candidates[k, 0], candidates[k, 1], t_first, best_a, best_b):
             t_first = t
             best_a = candidates[k, 0]
@@ -412,8 +412,8 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
         if (find_first and t_first == np.inf) or t_last == 1.0 or windows[k, 1] < t_last:
             break  # no remaining pair's boxes meet after the contact found
         t = candidate_contact(candidates[k, 0], candidates[k, 1], faces, face_base_a, face_base_b, world0,
-                               world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
-                               t_last, np.bool_(True), corners, work, counts)
+                              world1, world_base_a, world_base_b, motion_a, motion_b, time_tol, dist_tol,
+                              t_last, np.bool_(True), corners, work, counts)
         t_last = max(t_last, t)
     return t_first, t_last, best_a, best_b
 

@@ -464,8 +464,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
             if touch0:
                 return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
-        if find_touch1:  # touching at neither end: the plain search of both, the frame test done
-            find_touch1 = False
+        find_touch1 = False  # touching at neither end: the plain search of both, the frame test done
         stack, leaves = buffers.stack, buffers.leaves
     place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.stamp0, state.world0, state.stamp1,
                       state.world1)

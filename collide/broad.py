@@ -44,7 +44,7 @@ import math
 
 import numpy as np
 
-from .jit import njit
+from .jit import njit, njit_borrowing
 from .motion import (
     M_ETA,
     M_THETA,
@@ -118,7 +118,7 @@ def sweep_and_prune(lo, hi):
     return pairs[:k].copy()
 
 
-@njit(cache=True)
+@njit_borrowing
 def _widest_axis(lo):
     """The axis (0, 1 or 2) along which the rows of lo (N, 3) spread most (0 if N == 0)."""
     axis = 0
@@ -137,7 +137,7 @@ def _widest_axis(lo):
 
 # --- level 2: tandem descent --------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def relative_pose(rp_a, rp_b):
     """[R | t] mapping B's body frame into A's body frame, from poses rp_a, rp_b (3, 4):
     a 12-tuple, row by row (r00, r01, r02, t0, r10, ...). A tuple, not an array: it is
@@ -151,7 +151,7 @@ def relative_pose(rp_a, rp_b):
             _shifted(rp_a, rp_b, 2))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _rotated(rp_a, rp_b, i, j):
     """Entry (i, j) of R_a^T R_b."""
     s = 0.0
@@ -160,7 +160,7 @@ def _rotated(rp_a, rp_b, i, j):
     return s
 
 
-@njit(cache=True)
+@njit_borrowing
 def _shifted(rp_a, rp_b, i):
     """Entry i of R_a^T (p_b - p_a)."""
     s = 0.0
@@ -169,7 +169,7 @@ def _shifted(rp_a, rp_b, i):
     return s
 
 
-@njit(cache=True)
+@njit_borrowing
 def abs_rotation(rel):
     """|R| + a small epsilon of rel = [R | t] (relative_pose): a 9-tuple, row by row, for
     oriented_boxes_overlap."""
@@ -178,13 +178,13 @@ def abs_rotation(rel):
             abs(rel[6]) + e, abs(rel[8]) + e, abs(rel[9]) + e, abs(rel[10]) + e)
 
 
-@njit(cache=True)
+@njit_borrowing
 def node_box(lo, hi, n):
     """Box n of node arrays lo, hi (n, 3) as a 6-tuple (lo x, y, z, hi x, y, z)."""
     return lo[n, 0], lo[n, 1], lo[n, 2], hi[n, 0], hi[n, 1], hi[n, 2]
 
 
-@njit(cache=True)
+@njit_borrowing
 def oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
     """Boxes box_a (axis-aligned in A's frame) and box_b (in B's frame, placed in A's frame
     by rel = [R | t]), 6-tuples (node_box), overlap by the separating-axis test (15
@@ -236,7 +236,7 @@ def oriented_boxes_overlap(box_a, box_b, rel, abs_r, margin):
     return True
 
 
-@njit(cache=True)
+@njit_borrowing
 def descent_deviations(lo, hi, pose, motion, stack, top):
     """Deviation bounds (motion.box_deviation, length units) of A's and B's nodes under
     stack rows [0, top) (the node pairs a descent starts from): the largest of those
@@ -249,7 +249,7 @@ def descent_deviations(lo, hi, pose, motion, stack, top):
     return dev_a, dev_b
 
 
-@njit(cache=True)
+@njit_borrowing
 def rigid_frame_deviation(lo, hi, node_b, pose, motion, a, b):
     """How far (length units) any point of node_b's box (object B, body frame), seen in
     A's body frame, can stray from its chord between its two placements there over the
@@ -287,7 +287,7 @@ def rigid_frame_deviation(lo, hi, node_b, pose, motion, a, b):
     return bound * (1.0 + 2.0 ** -40)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _placed_centre(lo, hi, node, rp):
     """World centre (3-tuple) of node's box placed by pose rp (3, 4)."""
     b0 = 0.5 * (lo[node, 0] + hi[node, 0])
@@ -298,7 +298,7 @@ def _placed_centre(lo, hi, node, rp):
             rp[2, 3] + rp[2, 0] * b0 + rp[2, 1] * b1 + rp[2, 2] * b2)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _swept_boxes_overlap(lo, hi, na, nb, pose, margin_a, margin_b):
     """World boxes of nodes na (object A) and nb (object B) over the step overlap: each
     node's chord box widened by margin_a, margin_b (its deviation bound and the
@@ -311,7 +311,7 @@ def _swept_boxes_overlap(lo, hi, na, nb, pose, margin_a, margin_b):
     return True
 
 
-@njit(cache=True)
+@njit_borrowing
 def half_area(box):
     """Half the surface area of a box 6-tuple (node_box)."""
     dx = box[3] - box[0]
@@ -320,7 +320,7 @@ def half_area(box):
     return dx * dy + dy * dz + dz * dx
 
 
-@njit(cache=True)
+@njit_borrowing
 def opens_a(leaf_a, leaf_b, box_a, box_b):
     """Which node of a pair to open: A when B is a leaf, or when both are inner nodes and
     A's box (6-tuple) is the larger (by half area)."""
@@ -388,7 +388,7 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     return stack, top, out, k
 
 
-@njit(cache=True)
+@njit_borrowing
 def _put_pair(out, k, na, nb):
     """Write leaf pair (na, nb) as row k of out (int64 (cap, 2), which has room). Returns k + 1."""
     out[k, 0] = na
@@ -396,7 +396,7 @@ def _put_pair(out, k, na, nb):
     return k + 1
 
 
-@njit(cache=True)
+@njit_borrowing
 def _box_distance2(lo, hi, node, points, row):
     """Squared distance from points[row] (points (2, 3)) to node's box (0 inside)."""
     d2 = 0.0
@@ -406,7 +406,7 @@ def _box_distance2(lo, hi, node, points, row):
     return d2
 
 
-@njit(cache=True)
+@njit_borrowing
 def _nearer_child_on_top(lo, hi, toward, open_a, stack, top):
     """Swap the two child pairs _open just wrote to stack rows top and top + 1 when the
     child in row top (visited second) lies nearer the opened tree's point of toward
@@ -418,7 +418,7 @@ def _nearer_child_on_top(lo, hi, toward, open_a, stack, top):
             stack[top, j], stack[top + 1, j] = stack[top + 1, j], stack[top, j]
 
 
-@njit(cache=True)
+@njit_borrowing
 def _open(first, na, nb, open_a, stack, top):
     """Replace node pair (na, nb) by the pairs of the children of na (open_a) or of nb
     (opens_a) in stack rows top and top + 1 (room for both must exist). Returns open_a."""
@@ -447,7 +447,7 @@ _HELD_A = 1.0
 _HELD_B = 2.0
 
 
-@njit(cache=True)
+@njit_borrowing
 def _swept_node_box(box, rp0, rp1, d):
     """World box (lo x, y, z, hi x, y, z) holding a node's box (node_box 6-tuple) over the
     step: its chord box (motion.chord_interval_of between pose tuples rp0 and rp1)
@@ -459,19 +459,19 @@ def _swept_node_box(box, rp0, rp1, d):
     return x0 - d, y0 - d, z0 - d, x1 + d, y1 + d, z1 + d
 
 
-@njit(cache=True)
+@njit_borrowing
 def _held_box(held, row):
     return held[row, 0], held[row, 1], held[row, 2], held[row, 3], held[row, 4], held[row, 5]
 
 
-@njit(cache=True)
+@njit_borrowing
 def _hold(held, row, box, side):
     for i in range(6):
         held[row, i] = box[i]
     held[row, _HELD_SIDE] = side
 
 
-@njit(cache=True)
+@njit_borrowing
 def rigid_deviations(lo, hi, pose, motion, stack, top):
     """rigid_frame_deviation of A's nodes seen in B's frame and of B's nodes seen in A's,
     for the nodes under stack rows [0, top) (the node pairs a descent starts from)."""
@@ -483,7 +483,7 @@ def rigid_deviations(lo, hi, pose, motion, stack, top):
     return dev_a, dev_b
 
 
-@njit(cache=True)
+@njit_borrowing
 def _apart(box_a, box_b):
     """Boxes (6-tuples) do not overlap."""
     return (box_a[0] > box_b[3] or box_b[0] > box_a[3] or box_a[1] > box_b[4] or box_b[1] > box_a[4]
@@ -586,7 +586,7 @@ def leaf_pair_windows(lo, hi, rp0_a, rp1_a, rp0_b, rp1_b, motion_a, motion_b, di
 _NESTED_ULPS = 64.0 * 2.0 ** -52
 
 
-@njit(cache=True)
+@njit_borrowing
 def _moving_node_box(box, rp0, rp1):
     """A node's box (node_box 6-tuple) placed by pose tuples rp0 and rp1 at both ends of
     the step, in windows.moving_box's layout (15-tuple: for axis c, lo and hi at the

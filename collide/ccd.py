@@ -148,7 +148,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .jit import njit, prange
+from .jit import njit, njit_borrowing, prange
 from .predicates import triangles_intersect
 from .rows import COUNT_BOX_CHECKS, COUNT_CCD_PAIRS, COUNT_CCD_QUERIES, COUNT_WIDTH
 
@@ -210,13 +210,13 @@ def ccd_work():
 
 # --- F and its rounding bound -----------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _lerp(x_t0, x_t1, row, axis, t):
     """Coordinate axis of input point row at time t (length units)."""
     return x_t0[row, axis] + t * (x_t1[row, axis] - x_t0[row, axis])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _f_axis(kind, x_t0, x_t1, t, u, v, axis):
     """One coordinate of F at (t, u, v), in exactly the order the rounding bound assumes.
 
@@ -233,7 +233,7 @@ def _f_axis(kind, x_t0, x_t1, t, u, v, axis):
     return ((p0 - p2) + u * (p1 - p0)) - v * (p3 - p2)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _largest_coordinates(x_t0, x_t1):
     """m per axis (a 3-tuple, length units): the largest |coordinate| over the 8 input points."""
     m0 = 0.0
@@ -246,7 +246,7 @@ def _largest_coordinates(x_t0, x_t1):
     return (m0, m1, m2)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _rounding_bound(m):
     """delta per axis (a 3-tuple, length units): bounds |computed F - exact F| (module doc);
     m: _largest_coordinates."""
@@ -254,7 +254,7 @@ def _rounding_bound(m):
     return (scale * m[0] + _UNDERFLOW, scale * m[1] + _UNDERFLOW, scale * m[2] + _UNDERFLOW)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _root_excluded(kind, x_t0, x_t1, tol_out):
     """The whole domain [0, 1]^3 is excluded on some axis (decided without allocating)."""
     for axis in range(3):
@@ -272,7 +272,7 @@ def _root_excluded(kind, x_t0, x_t1, tol_out):
 
 # --- exclusion --------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _plane_vectors(kind, x_t0, x_t1, t, out, first):
     """Rows first, first + 1, first + 2 of out (float64 (>= first + 3, 3)): the two edge
     vectors and the offset vector of the query at time t, in the order of F (module
@@ -293,7 +293,7 @@ def _plane_vectors(kind, x_t0, x_t1, t, out, first):
             out[first + 2, axis] = p2 - p0
 
 
-@njit(cache=True)
+@njit_borrowing
 def _det(a, b, c):
     """Determinant of the 3 x 3 matrix with rows a, b, c (3,). (Rows, not a matrix and
     row numbers: constant row numbers would compile one copy per combination.)"""
@@ -302,7 +302,7 @@ def _det(a, b, c):
             + a[2] * (b[0] * c[1] - b[1] * c[0]))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _edge_bounds(start, end, m):
     """Bounds (3-tuple) on the |exact coordinates| of a vector over the time range whose
     computed ends are start and end (3,) (_plane_vectors): the larger computed end plus
@@ -312,7 +312,7 @@ def _edge_bounds(start, end, m):
             max(abs(start[2]), abs(end[2])) + slack * m[2])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
     """Bernstein coefficients of g = det(a, b, c) over [t_lo, t_hi] (module docstring,
     "coplanarity"): (b0, 3 b1, 3 b2, b3, bound), with bound the rounding bound plus
@@ -333,7 +333,7 @@ def _coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
     return b0, s1, s2, b3, bound
 
 
-@njit(cache=True)
+@njit_borrowing
 def _cubic_beyond(cubic):
     """All Bernstein coefficients of a _coplanarity_cubic beyond its bound, with one sign."""
     b0, s1, s2, b3, bound = cubic
@@ -344,7 +344,7 @@ def _cubic_beyond(cubic):
     return b0 < -bound and b3 < -bound and s1 < -3.0 * bound and s2 < -3.0 * bound
 
 
-@njit(cache=True)
+@njit_borrowing
 def _coplanarity_excluded(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
     """The 4 points stay farther than dist_tol from coplanar over all of [t_lo, t_hi]
     (module docstring, "coplanarity"): then no (u, v) gives contact in that time range.
@@ -352,7 +352,7 @@ def _coplanarity_excluded(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors):
     return _cubic_beyond(_coplanarity_cubic(kind, x_t0, x_t1, t_lo, t_hi, dist_tol, m, vectors))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _bernstein_value(cubic, s):
     """The cubic g at s in [0, 1] of its time range, as its sign relative to the first
     coefficient's: > 0 on the same side as g(t_lo), beyond the bound."""
@@ -362,7 +362,7 @@ def _bernstein_value(cubic, s):
     return value * np.sign(b0) - bound
 
 
-@njit(cache=True)
+@njit_borrowing
 def _time_before_coplanar(cubic, t_lo, t_hi, time_tol):
     """A time in (t_lo, t_hi) shortly (about time_tol / 4) before g first comes within its
     bound of zero, judged from the floating-point cubic; -1.0 when g starts within the
@@ -393,7 +393,7 @@ def _time_before_coplanar(cubic, t_lo, t_hi, time_tol):
     return t if t_lo + 0.25 * time_tol < t < t_hi else -1.0
 
 
-@njit(cache=True)
+@njit_borrowing
 def _box_corners(kind, x_t0, x_t1, box, corners):
     """Fill corners (8, 3) with F at the 8 corners of box (a heap row)."""
     for c in range(8):
@@ -404,7 +404,7 @@ def _box_corners(kind, x_t0, x_t1, box, corners):
             corners[c, axis] = _f_axis(kind, x_t0, x_t1, t, u, v, axis)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _excluded(corners, tol_out):
     """On some axis all the values (rows of corners) lie beyond tol_out on the same side."""
     for axis in range(3):
@@ -418,7 +418,7 @@ def _excluded(corners, tol_out):
     return False
 
 
-@njit(cache=True)
+@njit_borrowing
 def _edge_vector(kind, x_t0, x_t1, t, which, axis):
     """Coordinate axis at time t of edge which (0, 1): f1 - f0 and f2 - f0 for
     vertex-face, ea1 - ea0 and eb1 - eb0 for edge-edge."""
@@ -427,7 +427,7 @@ def _edge_vector(kind, x_t0, x_t1, t, which, axis):
     return _lerp(x_t0, x_t1, 2 * which + 1, axis, t) - _lerp(x_t0, x_t1, 2 * which, axis, t)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _set_directions(kind, x_t0, x_t1, t, dist_tol, delta, dirs, bounds):
     """Fill the test directions and their bounds (module docstring, "Test directions").
 
@@ -461,7 +461,7 @@ def _set_directions(kind, x_t0, x_t1, t, dist_tol, delta, dirs, bounds):
                      + abs(dirs[k, 2]) * (dist_tol + delta[2])) * (1.0 + 2.0 ** -50) + _UNDERFLOW
 
 
-@njit(cache=True)
+@njit_borrowing
 def _projected_range(dirs, k, values, n_values):
     """(lo, hi) of dirs[k] . values[c] over the first n_values rows; (nan, nan) when a
     product overflows (such a test must not exclude anything)."""
@@ -476,7 +476,7 @@ def _projected_range(dirs, k, values, n_values):
     return lo, hi
 
 
-@njit(cache=True)
+@njit_borrowing
 def _directions_excluded(dirs, bounds, values, n_values):
     """For one of the directions 3-5, d . F keeps one sign beyond bounds[k] at all the
     values (rows of values) that bound F over a box."""
@@ -487,7 +487,7 @@ def _directions_excluded(dirs, bounds, values, n_values):
     return False
 
 
-@njit(cache=True)
+@njit_borrowing
 def _clipped_excluded(kind, x_t0, x_t1, box, tol_out, dirs, bounds, values):
     """For a vertex-face box that straddles the triangle's edge u + v = 1: the exclusion
     tests over the part of the box inside the triangle only.
@@ -523,7 +523,7 @@ def _clipped_excluded(kind, x_t0, x_t1, box, tol_out, dirs, bounds, values):
 
 # --- certification of a near contact ----------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _det3(g, k, r):
     """Determinant of the 3 x 3 matrix g (4, 3 scratch rows 0-2) with column k replaced by r
     (k = -1: none)."""
@@ -540,7 +540,7 @@ def _det3(g, k, r):
             + m02 * (m10 * m21 - m11 * m20))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _newton_step(corners, face, scratch):
     """Regularised Gauss-Newton step toward F = 0 from the box's centre (face = -1), or
     from the centre of its start (face = 0) or end (face = 1) time face with t kept
@@ -568,7 +568,7 @@ def _newton_step(corners, face, scratch):
     return _regularised_solve(a.T, f, scratch[0:3], scratch[7], 1e-9)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _regularised_solve(jac, f, gram, rhs, lam):
     """x (3-tuple) solving (J^T J + lambda I) x = -J^T f for jac J (3, 3), with the
     system scaled to trace 1 and lambda = lam (copes with the rank-deficient J of
@@ -592,7 +592,7 @@ def _regularised_solve(jac, f, gram, rhs, lam):
     return (_det3(gram, 0, rhs) / det, _det3(gram, 1, rhs) / det, _det3(gram, 2, rhs) / det)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _in_box(box, d, step):
     """Centre of the box along dimension d moved by step box widths, kept in the box."""
     lo = box[2 * d]
@@ -601,7 +601,7 @@ def _in_box(box, d, step):
     return min(max(0.5 * (lo + hi) + step * (hi - lo), lo), hi)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, tol_in, work):
     """Refine the guess (t, u, v) toward F = 0 by regularised Gauss-Newton steps on the
     exact F (analytic derivatives), each kept in the box; t stays fixed when fix_t.
@@ -647,12 +647,12 @@ def _gauss_newton(kind, x_t0, x_t1, box, t, u, v, fix_t, tol_in, work):
     return t, u, v
 
 
-@njit(cache=True)
+@njit_borrowing
 def _clamp(x, lo, hi):
     return min(max(x, lo), hi) if np.isfinite(x) else lo
 
 
-@njit(cache=True)
+@njit_borrowing
 def _near_contact_at(kind, x_t0, x_t1, box, corners, face, t_fixed, tol_in, scratch):
     """Time t_c of the candidate point from _newton_step(face) and _gauss_newton if F
     there, computed afresh, is within tol_in on every axis and the point is in the
@@ -675,7 +675,7 @@ def _near_contact_at(kind, x_t0, x_t1, box, corners, face, t_fixed, tol_in, scra
     return t
 
 
-@njit(cache=True)
+@njit_borrowing
 def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
     """Earliest time of the box found to hold a certified near contact, -1.0 if none.
 
@@ -701,7 +701,7 @@ def _certify(kind, x_t0, x_t1, box, corners, time_tol, tol_in, scratch):
 
 # --- shrinking --------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _excluded_ends(corners, dim, tol_out):
     """(s_lo, s_hi), fractions of the box's width along dim: over the slices of the box at
     fractions s < s_lo and s > s_hi, the exact F is beyond dist_tol on some axis (module
@@ -737,7 +737,7 @@ def _excluded_ends(corners, dim, tol_out):
     return s_lo, s_hi
 
 
-@njit(cache=True)
+@njit_borrowing
 def _shrink(corners, box, tol_out):
     """Cut off the ends of the box (a heap row, changed in place) that the axis tests rule
     out slice by slice: -1 when that is all of it, 1 when some dimension shrank to about
@@ -764,7 +764,7 @@ def _shrink(corners, box, tol_out):
 
 # --- splitting --------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _start_excluded(corners, tol_out):
     """At the box's start time (the 4 even corners) some axis is beyond tol_out."""
     for axis in range(3):
@@ -775,7 +775,7 @@ def _start_excluded(corners, tol_out):
     return False
 
 
-@njit(cache=True)
+@njit_borrowing
 def _splittable(box, dim):
     """The box can be halved along dim: wider than _MIN_WIDTH, and its midpoint falls
     strictly inside (not so near an endpoint that it rounds onto it)."""
@@ -785,7 +785,7 @@ def _splittable(box, dim):
     return hi - lo > _MIN_WIDTH and lo < mid < hi
 
 
-@njit(cache=True)
+@njit_borrowing
 def _largest_change_dimension(corners, box):
     """Dimension (0 t, 1 u, 2 v) along which F changes the most, among those still
     wider than _MIN_WIDTH; -1 if none can be split."""
@@ -807,7 +807,7 @@ def _largest_change_dimension(corners, box):
     return best
 
 
-@njit(cache=True)
+@njit_borrowing
 def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid, proj):
     """Dimension (0 t, 1 u, 2 v) to split the box along: the one whose halving brings
     a half nearest to exclusion by one of the 6 tests (dirs, bounds; see
@@ -865,25 +865,25 @@ def _lookahead_dimension(kind, x_t0, x_t1, box, corners, dirs, bounds, mid, proj
 
 # --- a min-heap of boxes keyed by (t_lo, -depth) ----------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _before(heap, i, j):
     """Box i comes before box j: it starts earlier, or as early and is deeper."""
     return heap[i, 0] < heap[j, 0] or (heap[i, 0] == heap[j, 0] and heap[i, 6] > heap[j, 6])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _swap(heap, i, j):
     for c in range(_ROW):
         heap[i, c], heap[j, c] = heap[j, c], heap[i, c]
 
 
-@njit(cache=True)
+@njit_borrowing
 def _heap_push_half(heap, n, box, dim, upper):
     """Push the lower (upper=False) or upper half of box along dim; returns the new size."""
     return _heap_push_part(heap, n, box, dim, 0.5 * (box[2 * dim] + box[2 * dim + 1]), upper)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _heap_push_part(heap, n, box, dim, at, upper):
     """Push the part of box below (upper=False) or above the value at along dim; returns
     the new size."""
@@ -901,7 +901,7 @@ def _heap_push_part(heap, n, box, dim, at, upper):
     return n + 1
 
 
-@njit(cache=True)
+@njit_borrowing
 def _heap_pop(heap, n, out):
     """Move the first box into out (7,); returns the new size."""
     for c in range(_ROW):
@@ -925,7 +925,7 @@ def _heap_pop(heap, n, out):
 
 # --- the search -------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_max, work, counts):
     """Best-first box search (module docstring); returns the conservative toi, or inf
     when there is no contact at all or none before t_max. work: CCDWork (its search
@@ -1001,7 +1001,7 @@ def _search(kind, x_t0, x_t1, time_tol, dist_tol, m, delta, tol_out, tol_in, t_m
     return t_cut  # no contact before it; inf when nothing was certified
 
 
-@njit(cache=True)
+@njit_borrowing
 def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
     """Conservative earliest contact time of one query (kind VERTEX_FACE or EDGE_EDGE),
     as vertex_face_toi_kernel / edge_edge_toi_kernel, except that inf may also mean
@@ -1013,7 +1013,7 @@ def toi_before(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
     return searched_toi(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts)
 
 
-@njit(cache=True)
+@njit_borrowing
 def query_excluded(kind, x_t0, x_t1, dist_tol, t_max, scratch):
     """The cheap exclusions of toi_before: no contact at all, or none before t_max, is
     certain without a search (most queries of a triangle pair). scratch: float64 (8, 3).
@@ -1026,7 +1026,7 @@ def query_excluded(kind, x_t0, x_t1, dist_tol, t_max, scratch):
     return _coplanarity_excluded(kind, x_t0, x_t1, 0.0, min(1.0, t_max), dist_tol, m, scratch)
 
 
-@njit(cache=True)
+@njit_borrowing
 def searched_toi(kind, x_t0, x_t1, time_tol, dist_tol, t_max, work, counts):
     """toi_before of a query that query_excluded did not exclude: the box search."""
     m = _largest_coordinates(x_t0, x_t1)
@@ -1068,7 +1068,7 @@ def edge_edge_toi_kernel(x_t0, x_t1, time_tol, dist_tol):
 
 # --- a pair of moving triangles -------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
     """Earliest time in [0, 1] at which moving triangles p and q touch, inf if never.
 
@@ -1088,7 +1088,7 @@ def triangle_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
     return disjoint_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts)
 
 
-@njit(cache=True)
+@njit_borrowing
 def disjoint_pair_toi(p0, p1, q0, q1, time_tol, dist_tol, t_max, work, counts):
     """triangle_pair_toi of triangles known not to intersect at t = 0 (the caller has just
     decided it exactly): the 15 queries without that test."""

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import InputError, UsageError
-from .jit import njit
+from .jit import njit_borrowing
 
 
 class PairFilter(NamedTuple):
@@ -33,7 +33,7 @@ class PairFilter(NamedTuple):
     has_only: bool        #: True when --only patterns were given: pairs must match one
 
 
-@njit(cache=True)
+@njit_borrowing
 def _matches(side_a, side_b, a, b):
     for w in range(side_a.shape[1]):
         if (side_a[a, w] & side_b[b, w]) | (side_a[b, w] & side_b[a, w]):
@@ -41,7 +41,7 @@ def _matches(side_a, side_b, a, b):
     return False
 
 
-@njit(cache=True)
+@njit_borrowing
 def pair_selected(pairs, a, b):
     """Objects a and b are to be checked against each other under the PairFilter."""
     if _matches(pairs.ignore_a, pairs.ignore_b, a, b):

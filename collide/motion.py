@@ -75,7 +75,7 @@ import numpy as np
 
 from . import config
 from .ccd import disjoint_pair_toi, triangle_pair_toi
-from .jit import njit
+from .jit import njit, njit_allocating, njit_borrowing
 from .predicates import triangles_intersect
 from .rows import COUNT_SPLITS
 from .windows import swept_window
@@ -111,7 +111,20 @@ MAX_SUBSTEPS = 4096
 
 # --- screw parameters -----------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
+def _turn_entry(rp0, rp1, i, j):
+    """Entry (i, j) of the rotation dR = R1 R0^T taking pose rp0's rotation to rp1's."""
+    return rp1[i, 0] * rp0[j, 0] + rp1[i, 1] * rp0[j, 1] + rp1[i, 2] * rp0[j, 2]
+
+
+@njit_borrowing
+def _moved_offset(rp0, rp1, i):
+    """Component i of dp = p1 - dR p0 (dR: _turn_entry)."""
+    return rp1[i, 3] - (_turn_entry(rp0, rp1, i, 0) * rp0[0, 3] + _turn_entry(rp0, rp1, i, 1) * rp0[1, 3]
+                        + _turn_entry(rp0, rp1, i, 2) * rp0[2, 3])
+
+
+@njit_borrowing
 def screw_motion(rp0, rp1, eta, out):
     """Fill out (MOTION_WIDTH,) with the screw taking pose rp0 to rp1 ((3, 4) [R | p] each).
 
@@ -121,15 +134,11 @@ def screw_motion(rp0, rp1, eta, out):
     translation: the linear path).
     """
     out[:] = 0.0
-    dr = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            dr[i, j] = rp1[i, 0] * rp0[j, 0] + rp1[i, 1] * rp0[j, 1] + rp1[i, 2] * rp0[j, 2]
-    v0 = dr[2, 1] - dr[1, 2]
-    v1 = dr[0, 2] - dr[2, 0]
-    v2 = dr[1, 0] - dr[0, 1]
+    v0 = _turn_entry(rp0, rp1, 2, 1) - _turn_entry(rp0, rp1, 1, 2)
+    v1 = _turn_entry(rp0, rp1, 0, 2) - _turn_entry(rp0, rp1, 2, 0)
+    v2 = _turn_entry(rp0, rp1, 1, 0) - _turn_entry(rp0, rp1, 0, 1)
     sin2 = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)  # 2 sin(theta)
-    cos2 = dr[0, 0] + dr[1, 1] + dr[2, 2] - 1.0     # 2 cos(theta)
+    cos2 = _turn_entry(rp0, rp1, 0, 0) + _turn_entry(rp0, rp1, 1, 1) + _turn_entry(rp0, rp1, 2, 2) - 1.0  # 2 cos(theta)
     if sin2 == 0.0 and cos2 > 0.0:
         return True  # no rotation
     if sin2 <= config.SCREW_HALF_TURN_SIN * 2.0 and cos2 < 0.0:
@@ -141,24 +150,21 @@ def screw_motion(rp0, rp1, eta, out):
         cos_t = 0.5 * cos2
         k = 0
         for i in range(1, 3):
-            if dr[i, i] > dr[k, k]:
+            if _turn_entry(rp0, rp1, i, i) > _turn_entry(rp0, rp1, k, k):
                 k = i
-        s0 = 0.5 * (dr[0, k] + dr[k, 0]) - (cos_t if k == 0 else 0.0)
-        s1 = 0.5 * (dr[1, k] + dr[k, 1]) - (cos_t if k == 1 else 0.0)
-        s2 = 0.5 * (dr[2, k] + dr[k, 2]) - (cos_t if k == 2 else 0.0)
+        s0 = 0.5 * (_turn_entry(rp0, rp1, 0, k) + _turn_entry(rp0, rp1, k, 0)) - (cos_t if k == 0 else 0.0)
+        s1 = 0.5 * (_turn_entry(rp0, rp1, 1, k) + _turn_entry(rp0, rp1, k, 1)) - (cos_t if k == 1 else 0.0)
+        s2 = 0.5 * (_turn_entry(rp0, rp1, 2, k) + _turn_entry(rp0, rp1, k, 2)) - (cos_t if k == 2 else 0.0)
         norm = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
         if s0 * v0 + s1 * v1 + s2 * v2 < 0.0:
             norm = -norm
         w0, w1, w2 = s0 / norm, s1 / norm, s2 / norm
     # dp = p1 - dR p0, split along and across the axis
-    dp = np.empty(3)
-    for i in range(3):
-        dp[i] = rp1[i, 3] - (dr[i, 0] * rp0[0, 3] + dr[i, 1] * rp0[1, 3] + dr[i, 2] * rp0[2, 3])
-    d = w0 * dp[0] + w1 * dp[1] + w2 * dp[2]
+    dp0, dp1, dp2 = _moved_offset(rp0, rp1, 0), _moved_offset(rp0, rp1, 1), _moved_offset(rp0, rp1, 2)
+    d = w0 * dp0 + w1 * dp1 + w2 * dp2
     out[M_THETA] = theta
     out[M_AXIS], out[M_AXIS + 1], out[M_AXIS + 2] = w0, w1, w2
-    for i in range(3):
-        out[M_W + i] = dp[i] - d * out[M_AXIS + i]
+    out[M_W], out[M_W + 1], out[M_W + 2] = dp0 - d * w0, dp1 - d * w1, dp2 - d * w2
     out[M_D] = d
     # A = theta c = theta w / 2 + (theta cot(theta / 2) / 2) omega x w
     half_cot = 0.5 * theta * math.cos(0.5 * theta) / math.sin(0.5 * theta)
@@ -170,7 +176,7 @@ def screw_motion(rp0, rp1, eta, out):
     return True
 
 
-@njit(cache=True)
+@njit_borrowing
 def step_motions(interpolation, rp0, rp1, margins, out):
     """Motion rows out (N, MOTION_WIDTH) of N objects from poses rp0 to rp1 (N, 3, 4).
 
@@ -212,7 +218,7 @@ def motion_summary(poses, centres, radii, out):
 
 # --- positions --------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _turn(phi):
     """(cos phi, sin phi, 1 - cos phi) of a rotation by phi, the last as 2 sin^2(phi / 2)
     (accurate for small angles): computed once for all the points a rotation moves."""
@@ -220,7 +226,7 @@ def _turn(phi):
     return math.cos(phi), math.sin(phi), 2.0 * h * h
 
 
-@njit(cache=True)
+@njit_borrowing
 def _rotate_by(m, x0, x1, x2, turn):
     """Rot(omega, phi) applied to (x0, x1, x2), omega = m[M_AXIS:M_AXIS + 3] (Rodrigues),
     turn = _turn(phi)."""
@@ -234,7 +240,7 @@ def _rotate_by(m, x0, x1, x2, turn):
             x2 * c + (w0 * x1 - w1 * x0) * s + w2 * dot)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _screw_at(m, t):
     """What S(t, x) of the module docstring shares over all points x, for fraction t:
     (turn by t theta, s(t), Rot(omega, (t - 1) theta / 2) w as 3 floats, t d)."""
@@ -244,7 +250,7 @@ def _screw_at(m, t):
     return _turn(t * theta), s, u0, u1, u2, t * m[M_D]
 
 
-@njit(cache=True)
+@njit_borrowing
 def _screw_point(m, x0, x1, x2, at):
     """S(t, x) of the module docstring for the world point (x0, x1, x2) at t = 0, with
     at = _screw_at(m, t)."""
@@ -254,7 +260,7 @@ def _screw_point(m, x0, x1, x2, at):
             r2 + s * u2 + d * m[M_AXIS + 2])
 
 
-@njit(cache=True)
+@njit_borrowing
 def points_at(m, x_t0, x_t1, t, out):
     """World positions out (n, 3) at fraction t of the step of points at x_t0 (t = 0)
     and x_t1 (t = 1) (each (n, 3)), under the motion row m. Exact at t = 0 and 1.
@@ -279,7 +285,7 @@ def points_at(m, x_t0, x_t1, t, out):
             out[i, 2] = a2 + t * (x_t1[i, 2] - e2)
 
 
-@njit(cache=True)
+@njit_borrowing
 def pose_at(m, rp0, rp1, t, out):
     """The affine map out (3, 4) [A | b] taking body points to their world positions at
     fraction t of the step from pose rp0 to rp1 ((3, 4) each) under motion row m:
@@ -312,7 +318,7 @@ def pose_at(m, rp0, rp1, t, out):
     out[2, 3] = a2 + t * (rp1[2, 3] - e2)
 
 
-@njit(cache=True)
+@njit_borrowing
 def substeps(m_a, m_b, centre_a, radius_a, centre_b, radius_b):
     """Number of equal sub-steps (a power of 2, at most MAX_PAIR_SUBSTEPS) into which a pair of
     objects' step is cut so that, on each, the two objects' paths stay within
@@ -333,7 +339,7 @@ def substeps(m_a, m_b, centre_a, radius_a, centre_b, radius_b):
 
 # --- deviation bounds -----------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _theta_rho(m, x0, x1, x2):
     """theta times the distance of the world point (x0, x1, x2) from the screw axis."""
     theta = m[M_THETA]
@@ -344,13 +350,13 @@ def _theta_rho(m, x0, x1, x2):
     return math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _bound(m, theta_rho):
     """theta^2 rho / 8 from theta rho, rounded up (a relative 2^-40 covers its rounding)."""
     return 0.125 * m[M_THETA] * theta_rho * (1.0 + 2.0 ** -40)
 
 
-@njit(cache=True)
+@njit_borrowing
 def point_deviation(m, points):
     """Largest distance (length units) between the path of any of the points (n, 3)
     (world positions at t = 0) and its chord over the whole step: rho theta^2 / 8.
@@ -363,7 +369,7 @@ def point_deviation(m, points):
     return _bound(m, worst)
 
 
-@njit(cache=True)
+@njit_borrowing
 def corners_deviation(m, corners):
     """point_deviation of a triangle's three corners given as a 9-tuple, row by row."""
     if m[M_THETA] == 0.0:
@@ -374,7 +380,7 @@ def corners_deviation(m, corners):
     return _bound(m, worst)
 
 
-@njit(cache=True)
+@njit_borrowing
 def sphere_deviation(m, centre):
     """Deviation bound of the path of a world point centre (3,) at t = 0 (no margin)."""
     if m[M_THETA] == 0.0:
@@ -382,14 +388,14 @@ def sphere_deviation(m, centre):
     return _bound(m, _theta_rho(m, centre[0], centre[1], centre[2]))
 
 
-@njit(cache=True)
+@njit_borrowing
 def box_deviation(m, lo, hi, rp0):
     """Deviation bound (length units) of any point of the body box [lo, hi] (3,) placed
     by pose rp0 (3, 4) at t = 0, plus the rounding margin; 0 for linear motion."""
     return box_deviation_of(m, (lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]), pose_tuple(rp0))
 
 
-@njit(cache=True)
+@njit_borrowing
 def pose_tuple(rp):
     """Pose [R | p] (3, 4) as a 12-tuple, row by row. Per-node helpers of a descent take
     tuples: array views and array arguments would cost reference counting per node."""
@@ -397,7 +403,7 @@ def pose_tuple(rp):
             rp[2, 0], rp[2, 1], rp[2, 2], rp[2, 3])
 
 
-@njit(cache=True)
+@njit_borrowing
 def motion_tuple(m):
     """Motion row m (MOTION_WIDTH,) as a tuple (see pose_tuple)."""
     return (m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8], m[9], m[10], m[11])
@@ -407,7 +413,7 @@ if MOTION_WIDTH != 12:
     raise ImportError("motion.motion_tuple spells out a motion row's elements: update it with MOTION_WIDTH")
 
 
-@njit(cache=True)
+@njit_borrowing
 def box_deviation_of(m, box, rp0):
     """box_deviation of a box 6-tuple (lo x, y, z, hi x, y, z) placed by pose rp0
     (pose_tuple) at t = 0; m: a motion row or motion_tuple."""
@@ -429,13 +435,13 @@ def box_deviation_of(m, box, rp0):
 
 # --- swept bounds ---------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def world_interval(lo, hi, rp, i):
     """Range of world coordinate i over the body box [lo, hi] (3,) under rp = [R | p] (3, 4)."""
     return world_interval_of((lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]), pose_tuple(rp), i)
 
 
-@njit(cache=True)
+@njit_borrowing
 def world_interval_of(box, rp, i):
     """world_interval of a box 6-tuple under a pose_tuple rp."""
     c = rp[4 * i + 3]
@@ -446,14 +452,14 @@ def world_interval_of(box, rp, i):
     return c - e, c + e
 
 
-@njit(cache=True)
+@njit_borrowing
 def chord_interval(lo, hi, rp0, rp1, i):
     """World coordinate i's range of body box [lo, hi] at both poses rp0, rp1: it holds
     the box's chords (each point's straight path between the two poses)."""
     return chord_interval_of((lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]), pose_tuple(rp0), pose_tuple(rp1), i)
 
 
-@njit(cache=True)
+@njit_borrowing
 def chord_interval_of(box, rp0, rp1, i):
     """chord_interval of a box 6-tuple between pose_tuples rp0 and rp1."""
     lo0, hi0 = world_interval_of(box, rp0, i)
@@ -461,7 +467,7 @@ def chord_interval_of(box, rp0, rp1, i):
     return min(lo0, lo1), max(hi0, hi1)
 
 
-@njit(cache=True)
+@njit_borrowing
 def swept_box(lo, hi, rp0, rp1, m, w_lo, w_hi, widen):
     """Write into w_lo, w_hi (3,) the world AABB of the body box [lo, hi] over the step
     from pose rp0 to rp1 ((3, 4) each) under motion row m: its chord box widened by its
@@ -476,7 +482,7 @@ def swept_box(lo, hi, rp0, rp1, m, w_lo, w_hi, widen):
 
 # --- triangle pairs: certified first and last contact ---------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work,
                           counts):
     """Conservative first contact time in [0, 1] of triangles p and q over one step, or
@@ -499,7 +505,7 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
     return -np.inf if backwards and t == np.inf else t
 
 
-@njit(cache=True)
+@njit_allocating
 def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts):
     """The sub-step refinement of the module docstring. Forwards: earliest contact up to
     limit; backwards: latest contact from limit on (the same search with time running

@@ -15,14 +15,14 @@ import numpy as np
 
 from .broad import grown_rows, reorder_rows, with_room
 from .ccd import ccd_work
-from .jit import njit
+from .jit import njit, njit_borrowing
 from .motion import M_ETA, corners_deviation, point_deviation, triangle_pair_contact
 from .predicates import triangles_intersect
 from .rows import COUNT_TRIANGLE_PAIRS
 from .windows import box_window, cross_window, largest_coordinate, moving_box
 
 
-@njit(cache=True)
+@njit_borrowing
 def gather_triangle(world, world_base, faces, face, out):
     """out (3, 3) = world coordinates of the triangle with global face row ``face``."""
     for r in range(3):
@@ -31,7 +31,7 @@ def gather_triangle(world, world_base, faces, face, out):
             out[r, c] = world[row, c]
 
 
-@njit(cache=True)
+@njit_borrowing
 def gathered_corners(world, world_base, faces, face):
     """The world corners of the triangle with global face row ``face`` as a 9-tuple, row
     by row (gather_triangle without a buffer: per-pair helpers take tuples, since array
@@ -85,7 +85,7 @@ class Placed(NamedTuple):
     key: int            #: this pose's key (a frame; static objects: one key for all frames)
 
 
-@njit(cache=True)
+@njit_borrowing
 def placed_triangle(obj, face, out):
     """out (3, 3) = world corners of mesh-local triangle ``face`` of the Placed object,
     computing (p + R0 x + R1 y + R2 z, as packed.to_world) the vertices not yet known
@@ -104,7 +104,7 @@ def placed_triangle(obj, face, out):
             out[r, c] = obj.world[row, c]
 
 
-@njit(cache=True)
+@njit_borrowing
 def triangle_boxes_overlap(p, q):
     """Exact AABB test of two triangles (min/max of the same floats)."""
     for c in range(3):
@@ -156,7 +156,7 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
     return out, n_out
 
 
-@njit(cache=True)
+@njit_borrowing
 def triangle_pair_count(leaves, n_leaves, count):
     """Number of triangle pairs in the first n_leaves leaf pairs (room to make before a
     loop appends some of them, so that it never rebinds its buffer)."""
@@ -240,18 +240,18 @@ def new_pending():
     return Pending(np.empty(64), np.empty((64, 2), np.int64), np.zeros(1, np.int64))
 
 
-@njit(cache=True)
+@njit_borrowing
 def pending_size(pending):
     return pending.size[0]
 
 
-@njit(cache=True)
+@njit_borrowing
 def pending_first_key(pending):
     """The smallest key (pending not empty)."""
     return pending.keys[0]
 
 
-@njit(cache=True)
+@njit_borrowing
 def _heap_before(pending, i, j):
     """Row i of the heap comes before row j: smaller key, then smaller (tri_a, tri_b)."""
     keys, pairs = pending.keys, pending.pairs
@@ -262,7 +262,7 @@ def _heap_before(pending, i, j):
     return pairs[i, 1] < pairs[j, 1]
 
 
-@njit(cache=True)
+@njit_borrowing
 def _swap(pending, i, j):
     keys, pairs = pending.keys, pending.pairs
     keys[i], keys[j] = keys[j], keys[i]
@@ -290,7 +290,7 @@ def pending_push(pending, key, tri_a, tri_b):
     return pending
 
 
-@njit(cache=True)
+@njit_borrowing
 def pending_pop(pending):
     """Remove and return the first row (key, tri_a, tri_b) (pending not empty)."""
     key, tri_a, tri_b = pending.keys[0], pending.pairs[0, 0], pending.pairs[0, 1]
@@ -335,7 +335,7 @@ _SIDE_DEV = 33
 _SIDE_WIDTH = 34
 
 
-@njit(cache=True)
+@njit_borrowing
 def _set_side_row(side, j, t0, t1, deviation):
     """Row j of side: a triangle's corners t0, t1 (9-tuples) at both ends of the step,
     its moving_box and its deviation bound (length units). One array argument: each
@@ -349,14 +349,14 @@ def _set_side_row(side, j, t0, t1, deviation):
     side[j, _SIDE_DEV] = deviation
 
 
-@njit(cache=True)
+@njit_borrowing
 def _side_corners(side, j, at):
     """Corners (9-tuple) of row j of side from column ``at`` (0: step start, 9: end)."""
     return (side[j, at], side[j, at + 1], side[j, at + 2], side[j, at + 3], side[j, at + 4], side[j, at + 5],
             side[j, at + 6], side[j, at + 7], side[j, at + 8])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _side_box(side, j):
     """moving_box (15-tuple) of row j of side."""
     b = _SIDE_BOX
@@ -418,7 +418,7 @@ def candidates_contact_window(candidates, n, windows, faces, face_base_a, face_b
     return t_first, t_last, best_a, best_b
 
 
-@njit(cache=True)
+@njit_borrowing
 def comes_first(t, tri_a, tri_b, t_first, best_a, best_b):
     """Contact time t of triangle pair (tri_a, tri_b) replaces the earliest one found so far,
     t_first of (best_a, best_b): it is earlier, or as early (and finite) with the smaller
@@ -426,7 +426,7 @@ def comes_first(t, tri_a, tri_b, t_first, best_a, best_b):
     return t < t_first or (t == t_first and t < np.inf and (tri_a < best_a or (tri_a == best_a and tri_b < best_b)))
 
 
-@njit(cache=True)
+@njit_borrowing
 def candidate_contact(tri_a, tri_b, faces, face_base_a, face_base_b, world0, world1, world_base_a,
                        world_base_b, motion_a, motion_b, time_tol, dist_tol, limit, backwards, corners, work,
                        counts):

@@ -17,7 +17,7 @@ between about 1e-90 and 1e90, or zero).
 """
 import numpy as np
 
-from .jit import njit
+from .jit import njit_allocating, njit_borrowing
 
 _EPS = 2.0 ** -53  # half an ulp of 1.0
 _SPLITTER = 134217729.0  # 2**27 + 1, splits a double into two 26-bit halves
@@ -27,7 +27,7 @@ _ORIENT3D_BOUND = (7.0 + 56.0 * _EPS) * _EPS
 
 # --- error-free transformations ---------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _two_sum(a, b):
     """a + b = x + y exactly, with x = fl(a + b)."""
     x = a + b
@@ -36,14 +36,14 @@ def _two_sum(a, b):
     return x, (a - a_virtual) + (b - b_virtual)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _split(a):
     c = _SPLITTER * a
     high = c - (c - a)
     return high, a - high
 
 
-@njit(cache=True)
+@njit_borrowing
 def _two_product(a, b):
     """a * b = x + y exactly, with x = fl(a * b) (Dekker)."""
     x = a * b
@@ -55,7 +55,7 @@ def _two_product(a, b):
     return x, a_lo * b_lo - err
 
 
-@njit(cache=True)
+@njit_allocating
 def _grow_expansion(e, n, b, out):
     """out[:m] = e[:n] + b exactly; zero components dropped. Returns m.
 
@@ -74,7 +74,7 @@ def _grow_expansion(e, n, b, out):
     return m
 
 
-@njit(cache=True)
+@njit_allocating
 def _expansion_sign(terms):
     """Exact sign of the sum of the doubles in ``terms`` (1-D float64)."""
     n_terms = terms.shape[0]
@@ -90,7 +90,7 @@ def _expansion_sign(terms):
 
 # --- orient2d ------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_allocating
 def _orient2d_exact(ax, ay, bx, by, cx, cy):
     terms = np.empty(12)
     pairs = ((ax, by, 1.0), (ay, bx, -1.0), (ax, cy, -1.0),
@@ -107,7 +107,7 @@ def _orient2d_exact(ax, ay, bx, by, cx, cy):
 _TINY = 2.0 ** -300
 
 
-@njit(cache=True)
+@njit_borrowing
 def _exact_difference(a, b, x):
     """x = fl(a - b) is exactly a - b (Shewchuk's Two-Diff tail is zero) and is zero or at
     least _TINY in magnitude, so that products of three such differences and their
@@ -117,7 +117,7 @@ def _exact_difference(a, b, x):
     return (a - a_virtual) + (b_virtual - b) == 0.0 and (x == 0.0 or abs(x) >= _TINY)
 
 
-@njit(cache=True)
+@njit_allocating
 def _orient2d_exact_diffs(acx, acy, bcx, bcy):
     """Exact sign of acx * bcy - acy * bcx for float64 inputs (4 exact terms)."""
     terms = np.empty(4)
@@ -128,7 +128,7 @@ def _orient2d_exact_diffs(acx, acy, bcx, bcy):
     return _expansion_sign(terms)
 
 
-@njit(cache=True)
+@njit_borrowing
 def orient2d(ax, ay, bx, by, cx, cy):
     """Exact sign of det[[ax-cx, ay-cy], [bx-cx, by-cy]].
 
@@ -150,7 +150,7 @@ def orient2d(ax, ay, bx, by, cx, cy):
     return _orient2d_undecided(ax, ay, bx, by, cx, cy)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _orient2d_undecided(ax, ay, bx, by, cx, cy):
     """orient2d where the floating-point filter could not decide: exact."""
     if ((ax == cx and ay == cy) or (bx == cx and by == cy)
@@ -173,7 +173,7 @@ def _orient2d_undecided(ax, ay, bx, by, cx, cy):
 
 # --- orient3d ------------------------------------------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _det3_terms(p, q, r, sign, terms, k):
     """Append the 6 triple products of sign*det[p; q; r] (as 4 doubles each)."""
     triples = ((p[0], q[1], r[2], 1.0), (p[0], q[2], r[1], -1.0),
@@ -193,7 +193,7 @@ def _det3_terms(p, q, r, sign, terms, k):
     return k
 
 
-@njit(cache=True)
+@njit_allocating
 def _orient3d_exact(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     # Scalar arguments on purpose: passing array views into a call that the
     # fast path does not inline costs reference counting on every call.
@@ -210,7 +210,7 @@ def _orient3d_exact(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     return _expansion_sign(terms)
 
 
-@njit(cache=True)
+@njit_borrowing
 def orient3d(a, b, c, d):
     """Exact sign of det[a-d; b-d; c-d] for points a, b, c, d (3,) float64.
 
@@ -220,13 +220,13 @@ def orient3d(a, b, c, d):
     return orient3d_xyz(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _differences(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     """The rows of [a-d; b-d; c-d] as a 9-tuple (rounded differences)."""
     return ax - dx, ay - dy, az - dz, bx - dx, by - dy, bz - dz, cx - dx, cy - dy, cz - dz
 
 
-@njit(cache=True)
+@njit_borrowing
 def orient3d_xyz(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     """orient3d of the points (ax, ay, az), ..., (dx, dy, dz), given as 12 float64.
 
@@ -252,7 +252,7 @@ def orient3d_xyz(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     return _orient3d_undecided(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _orient3d_undecided(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     """orient3d where the floating-point filter could not decide: exact."""
     if (ax == dx and bx == dx and cx == dx) or (ay == dy and by == dy and cy == dy) or (
@@ -278,7 +278,7 @@ def _orient3d_undecided(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz):
     return _orient3d_exact(ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz)
 
 
-@njit(cache=True)
+@njit_allocating
 def _orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz):
     """Exact sign of det[[adx, ady, adz], [bdx, bdy, bdz], [cdx, cdy, cdz]] (float64 entries)."""
     terms = np.empty(24)
@@ -291,7 +291,7 @@ def _orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz):
 # Helpers take whole (3, 3) triangle arrays plus row indices, or scalars, never
 # array views: views handed to calls cost reference counting in the hot path.
 
-@njit(cache=True)
+@njit_borrowing
 def _segments_intersect_2d(px, py, qx, qy, rx, ry, sx, sy):
     """Closed 2-D segments pq and rs share a point."""
     o1 = orient2d(px, py, qx, qy, rx, ry)
@@ -301,7 +301,7 @@ def _segments_intersect_2d(px, py, qx, qy, rx, ry, sx, sy):
     return _segments_meet(o1, o2, o3, o4, px, py, qx, qy, rx, ry, sx, sy)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _segments_meet(o1, o2, o3, o4, px, py, qx, qy, rx, ry, sx, sy):
     """Closed 2-D segments pq and rs share a point, given the exact sides o1, o2 of r, s
     against line pq and o3, o4 of p, q against line rs."""
@@ -312,7 +312,7 @@ def _segments_meet(o1, o2, o3, o4, px, py, qx, qy, rx, ry, sx, sy):
     return o1 * o2 <= 0 and o3 * o4 <= 0
 
 
-@njit(cache=True)
+@njit_borrowing
 def _point_in_triangle_2d(px, py, ax, ay, bx, by, cx, cy):
     """2-D point p lies in the closed, non-degenerate triangle abc."""
     s0 = orient2d(ax, ay, bx, by, px, py)
@@ -321,7 +321,7 @@ def _point_in_triangle_2d(px, py, ax, ay, bx, by, cx, cy):
     return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _segment_meets_triangle_2d(s, i, j, t, x, y):
     """Closed segment s[i] s[j] meets closed triangle t, projected on axes (x, y)."""
     ax, ay, bx, by = s[i, x], s[i, y], s[j, x], s[j, y]
@@ -338,7 +338,7 @@ def _segment_meets_triangle_2d(s, i, j, t, x, y):
             or _segments_intersect_2d(ax, ay, bx, by, q2x, q2y, q0x, q0y))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _coplanar_segment_meets_triangle(s, i, j, t):
     """Closed segment s[i] s[j] meets closed triangle t, all five points coplanar.
 
@@ -353,7 +353,7 @@ def _coplanar_segment_meets_triangle(s, i, j, t):
             and _segment_meets_triangle_2d(s, i, j, t, np.int64(2), np.int64(0)))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _one_to_one_projection(t):
     """Axes (x, y) on which triangle t (3, 3) has non-zero area (exact), the first of
     (0, 1), (1, 2), (2, 0); (-1, -1) when t has zero area on all three (is degenerate)."""
@@ -363,7 +363,7 @@ def _one_to_one_projection(t):
     return np.int64(-1), np.int64(-1)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _side(t, s, m):
     """orient3d(t[0], t[1], t[2], s[m]) for triangles t and s (3, 3): the side of t's plane
     that point m of s is on."""
@@ -371,14 +371,14 @@ def _side(t, s, m):
                         s[m, 0], s[m, 1], s[m, 2])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _edge_side(s, i, j, t, k, m):
     """orient3d(s[i], s[j], t[k], t[m]) for triangles s and t (3, 3)."""
     return orient3d_xyz(s[i, 0], s[i, 1], s[i, 2], s[j, 0], s[j, 1], s[j, 2], t[k, 0], t[k, 1], t[k, 2],
                         t[m, 0], t[m, 1], t[m, 2])
 
 
-@njit(cache=True)
+@njit_borrowing
 def segment_meets_triangle(s, i, j, t, side_i, side_j):
     """Closed segment s[i] s[j] and closed triangle t (3, 3) share a point (exact).
 
@@ -411,7 +411,7 @@ def segment_meets_triangle(s, i, j, t, side_i, side_j):
     return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _vertex_sides_2d(p, q, x, y):
     """Exact sides of q's vertices of p's edges on axes (x, y): a 9-tuple whose entry
     3 * e + k is orient2d(p[e], p[e + 1], q[k]) (edges e = 0, 1, 2; p[3] is p[0])."""
@@ -426,7 +426,7 @@ def _vertex_sides_2d(p, q, x, y):
             orient2d(p[2, x], p[2, y], p[0, x], p[0, y], q[2, x], q[2, y]))
 
 
-@njit(cache=True)
+@njit_borrowing
 def _inside(sides, k):
     """Vertex k is in the closed triangle (of non-zero area) whose edge sides are ``sides``
     (_vertex_sides_2d): on one side of, or on, all three edges."""
@@ -434,7 +434,7 @@ def _inside(sides, k):
     return (s0 >= 0 and s1 >= 0 and s2 >= 0) or (s0 <= 0 and s1 <= 0 and s2 <= 0)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _coplanar_triangles_meet(p, q, x, y):
     """Closed triangles p and q (3, 3) in one plane share a point (exact); q has non-zero
     area on axes (x, y), so projecting along the third axis maps the plane one-to-one
@@ -464,7 +464,7 @@ def _coplanar_triangles_meet(p, q, x, y):
     return False
 
 
-@njit(cache=True)
+@njit_borrowing
 def triangles_intersect(p, q):
     """Closed triangles p and q, (3,3) float64 rows = vertices, share a point.
 

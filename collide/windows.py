@@ -7,10 +7,10 @@ reference counting on every call in numba.
 """
 import numpy as np
 
-from .jit import njit
+from .jit import njit_borrowing
 
 
-@njit(cache=True)
+@njit_borrowing
 def corners_of(t):
     """Triangle t (3, 3) as a 9-tuple, row by row."""
     return (t[0, 0], t[0, 1], t[0, 2], t[1, 0], t[1, 1], t[1, 2], t[2, 0], t[2, 1], t[2, 2])
@@ -20,7 +20,7 @@ def corners_of(t):
 _WINDOW_ULPS = 8.0 * 2.0 ** -52
 
 
-@njit(cache=True)
+@njit_borrowing
 def clip_rising(f0, f1, t_lo, t_hi):
     """Restrict [t_lo, t_hi] to where f(t) = f0 + t (f1 - f0) >= 0 (widened by 1e-12 in t
     for the rounding of the root); empty (t_lo > t_hi) when f < 0 on all of [0, 1]."""
@@ -34,13 +34,13 @@ def clip_rising(f0, f1, t_lo, t_hi):
     return t_lo, min(t_hi, root + 1e-12)
 
 
-@njit(cache=True)
+@njit_borrowing
 def swept_window(p0, p1, q0, q1, margin):
     """swept_window_of for triangles given as (3, 3) arrays."""
     return swept_window_of(corners_of(p0), corners_of(p1), corners_of(q0), corners_of(q1), margin)
 
 
-@njit(cache=True)
+@njit_borrowing
 def swept_window_of(p0, p1, q0, q1, margin):
     """(t_lo, t_hi) in [0, 1]: outside it the two moving triangles cannot come within
     margin (length units) of each other; t_lo > t_hi when they never do.
@@ -66,7 +66,7 @@ def swept_window_of(p0, p1, q0, q1, margin):
     return cross_window(p0, p1, q0, q1, margin, largest_coordinate(p_box, q_box), t_lo, t_hi)
 
 
-@njit(cache=True)
+@njit_borrowing
 def moving_box(t0, t1):
     """The corner boxes of a triangle at both ends of a step (9-tuples t0, t1) as a
     15-tuple: for axis c, (lo at t0, hi at t0, lo at t1, hi at t1) at 4 c to 4 c + 3,
@@ -78,7 +78,7 @@ def moving_box(t0, t1):
     return (x[0], x[1], x[2], x[3], y[0], y[1], y[2], y[3], z[0], z[1], z[2], z[3], x[4], y[4], z[4])
 
 
-@njit(cache=True)
+@njit_borrowing
 def _axis_extents(t0, t1, c):
     lo0 = min(t0[c], t0[3 + c], t0[6 + c])
     hi0 = max(t0[c], t0[3 + c], t0[6 + c])
@@ -87,13 +87,13 @@ def _axis_extents(t0, t1, c):
     return lo0, hi0, lo1, hi1, max(abs(lo0), abs(hi0), abs(lo1), abs(hi1))
 
 
-@njit(cache=True)
+@njit_borrowing
 def largest_coordinate(p_box, q_box):
     """The largest |coordinate| of two moving_box tuples."""
     return max(p_box[12], p_box[13], p_box[14], q_box[12], q_box[13], q_box[14])
 
 
-@njit(cache=True)
+@njit_borrowing
 def box_window(p_box, q_box, margin):
     """swept_window_of along x, y and z, from the triangles' moving_box tuples: (t_lo,
     t_hi), t_lo > t_hi when the boxes never come within margin of each other."""
@@ -111,7 +111,7 @@ def box_window(p_box, q_box, margin):
     return t_lo, t_hi
 
 
-@njit(cache=True)
+@njit_borrowing
 def cross_window(p0, p1, q0, q1, margin, largest, t_lo, t_hi):
     """[t_lo, t_hi] restricted by swept_window_of's tests along the triangles' normals and
     the cross products of their edges at the step's start; largest: the largest
@@ -129,7 +129,7 @@ def cross_window(p0, p1, q0, q1, margin, largest, t_lo, t_hi):
     return t_lo, t_hi
 
 
-@njit(cache=True)
+@njit_borrowing
 def _clip_along_cross(u, u0, u1, v, v0, v1, p0, p1, q0, q1, margin, size, t_lo, t_hi):
     """_swept_window_of's test along n = (u[u1] - u[u0]) x (v[v1] - v[v0]), corners of
     triangles u and v (9-tuples): [t_lo, t_hi] restricted to where the blended extents
@@ -159,7 +159,7 @@ def _clip_along_cross(u, u0, u1, v, v0, v1, p0, p1, q0, q1, margin, size, t_lo, 
     return clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _extent(corners, nx, ny, nz):
     """(min, max) of n . corner over the three corners (a 9-tuple)."""
     lo = np.inf

@@ -113,3 +113,108 @@ def test_warmup_command_adds_the_lbvh_builder_only_when_asked(monkeypatch):
         assert run_cli("warmup", *args).returncode == 0
     assert given == [["continuous", "discrete", "lbvh", "setup"], ["continuous", "discrete", "setup"],
                      ["continuous", "discrete", "setup"], ["discrete", "lbvh", "setup"]]
+
+
+def _collide_dispatchers():
+    """Every numba dispatcher defined in collide's modules."""
+    import importlib
+    import pkgutil
+
+    from numba.core.registry import CPUDispatcher
+
+    import collide
+    found = {}
+    for info in pkgutil.iter_modules(collide.__path__):
+        module = importlib.import_module(f"collide.{info.name}")
+        for value in vars(module).values():
+            if isinstance(value, CPUDispatcher) and value.py_func.__module__ == module.__name__:
+                found[value.py_func.__module__ + "." + value.py_func.__qualname__] = value
+    return found
+
+
+def _called_dispatchers(dispatcher):
+    """The dispatchers a kernel's source calls: by name, or as module.name."""
+    import ast
+    import inspect
+    import textwrap
+    import types as pytypes
+
+    from numba.core.registry import CPUDispatcher
+    names = dispatcher.py_func.__globals__
+    called = []
+    for node in ast.walk(ast.parse(textwrap.dedent(inspect.getsource(dispatcher.py_func)))):
+        if not isinstance(node, ast.Call):
+            continue
+        target = None
+        if isinstance(node.func, ast.Name):
+            target = names.get(node.func.id)
+        elif isinstance(node.func, ast.Attribute) and isinstance(node.func.value, ast.Name):
+            owner = names.get(node.func.value.id)
+            if isinstance(owner, pytypes.ModuleType):
+                target = getattr(owner, node.func.attr, None)
+        if isinstance(target, CPUDispatcher):
+            called.append(target)
+    return called
+
+
+def _compiled_return_types(dispatcher):
+    """Return types of every compiled version of ``dispatcher``: loaded in this process, or
+    stored in the kernel cache for this source (callees of a kernel loaded from the cache
+    are not loaded one by one)."""
+    found = [cres.signature.return_type for cres in dispatcher.overloads.values()]
+    cache = dispatcher._cache
+    for key in cache._cache_file._load_index():
+        cres = cache.load_overload(key[0], dispatcher.targetctx)
+        if cres is not None:
+            found.append(cres.signature.return_type)
+    return found
+
+
+def _holds_array(numba_type):
+    from numba.core import types
+    if isinstance(numba_type, types.Array):
+        return True
+    return isinstance(numba_type, types.BaseTuple) and any(_holds_array(t) for t in numba_type.types)
+
+
+def test_borrowing_helpers_are_given_no_array_back(two_boxes):
+    """A helper compiled by jit.njit_borrowing keeps no reference count: an array it
+    returned, or was returned by a helper it calls, would be counted once too few or too
+    many (freed while in use, or never freed). So no helper it reaches, marked or not,
+    returns one, in any version compiled for the scans (numba itself refuses to compile
+    an allocation in them)."""
+    import numpy as np
+    from conftest import write_trajectory
+
+    import collide
+    meshes, traj = two_boxes
+    n = 13  # the mover also turns about z, a quarter turn over the run: screw motion between frames
+    angle = np.linspace(0.0, 0.5 * np.pi, n)
+    orientation = np.zeros((n, 1, 4))
+    orientation[:, 0, 0], orientation[:, 0, 3] = np.cos(0.5 * angle), np.sin(0.5 * angle)
+    position = np.zeros((n, 1, 3))
+    position[:, 0, 0] = np.linspace(-3.0, 3.0, n)
+    turning = write_trajectory(traj.parent / "turning.h5", np.arange(n) * 0.1, ["mover"], position, orientation)
+    for trajectory, mode in ((traj, "discrete"), (turning, "continuous"), (turning, "discrete")):
+        assert collide.scan(meshes, trajectory, mode=mode, workers=1).contacts["object_a"].size > 0
+
+    dispatchers = _collide_dispatchers()
+    borrowing = [d for d in dispatchers.values() if d.targetoptions.get("_nrt") is False]
+    assert len(borrowing) > 100
+    reached, todo = {}, list(borrowing)
+    while todo:
+        d = todo.pop()
+        if id(d) not in reached:
+            reached[id(d)] = d
+            todo.extend(_called_dispatchers(d))
+    # each says which it is (inlined ones become part of their caller), else numba compiles it
+    # as its first caller is compiled: without the runtime, an allocation fails, or not, by order
+    unmarked = sorted(d.py_func.__qualname__ for d in reached.values()
+                      if "_nrt" not in d.targetoptions and d.targetoptions.get("inline") != "always")
+    assert unmarked == []
+    checked = 0
+    for d in reached.values():
+        for return_type in _compiled_return_types(d):
+            assert not _holds_array(return_type), (d.py_func.__qualname__, return_type)
+            checked += 1
+    assert checked > 100  # the scans compiled (or loaded) most of them

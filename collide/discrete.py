@@ -41,10 +41,11 @@ from .broad import (
     relative_pose,
     sweep_and_prune,
     swept_leaves,
+    with_room,
 )
 from .bvh import smallest_id_under
 from .filters import pair_selected
-from .jit import njit
+from .jit import njit, njit_borrowing
 from .motion import MOTION_WIDTH, swept_box
 from .narrow import (
     Placed,
@@ -53,6 +54,7 @@ from .narrow import (
     new_stamps,
     placed_triangle,
     triangle_boxes_overlap,
+    triangle_pair_count,
 )
 from .predicates import triangles_intersect
 from .rows import (
@@ -97,13 +99,18 @@ def object_world_boxes(ps, rp0, rp1, motion, extra, margin):
     rp1 (N, 3, 4) under motion rows motion (N, MOTION_WIDTH) (pass the same poses
     twice and zero rows for a still frame), widened by each object's rounding margin
     (N,) (object_margins) plus ``extra``."""
-    n = rp0.shape[0]
-    lo = np.empty((n, 3))
-    hi = np.empty((n, 3))
-    for o in range(n):
+    lo = np.empty((rp0.shape[0], 3))
+    hi = np.empty((rp0.shape[0], 3))
+    _fill_world_boxes(ps, rp0, rp1, motion, extra, margin, lo, hi)
+    return lo, hi
+
+
+@njit_borrowing
+def _fill_world_boxes(ps, rp0, rp1, motion, extra, margin, lo, hi):
+    """object_world_boxes into lo, hi (N, 3)."""
+    for o in range(rp0.shape[0]):
         root = ps.root[ps.object_mesh[o]]
         swept_box(ps.node_lo[root], ps.node_hi[root], rp0[o], rp1[o], motion[o], lo[o], hi[o], margin[o] + extra)
-    return lo, hi
 
 
 class PairScratch(NamedTuple):
@@ -168,7 +175,7 @@ def _smallest_pair(tri, n):
     return tri[best, 0], tri[best, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # part of its caller: njit_borrowing _still_touching gets no array back
 def _placed(ps, rp, o, f, static, stamp, world):
     """Object o at frame f (pose rp (N, 3, 4)) as a narrow.Placed view of the lazily filled
     world buffer; static objects share one key over all frames."""
@@ -214,8 +221,9 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
         stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
                                                           stack, top, leaves, batch, counts, toward, near_a >= 0)
         if n_leaves > 0:
-            tri, n_tri = intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, tri, n_tri,
-                                                first_only, p, q, counts)
+            tri = with_room(tri, n_tri, n_tri + triangle_pair_count(leaves, n_leaves, count))
+            n_tri = intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, tri, n_tri,
+                                           first_only, p, q, counts)
     return stack, leaves, tri, n_tri
 
 
@@ -226,7 +234,7 @@ def key_row(keys, key):
     return i if i < keys.shape[0] and keys[i] == key else -1
 
 
-@njit(cache=True)
+@njit_borrowing
 def _still_touching(ps, rp, f, a, b, static, stamp, world, tri_a, tri_b, scratch, tri, counts):
     """Whether triangle pair (tri_a, tri_b) of objects a and b (the one they touched
     through at the previous frame) still intersects at frame f; if so it is tri[0].

@@ -125,7 +125,7 @@ def append_row(buf, n, row):
     return buf, n + 1
 
 
-@njit(cache=True)
+@njit_borrowing
 def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, out, n_out, first_only, p,
                            q, counts):
     """Append every intersecting triangle pair (tri_a, tri_b) of the leaf pairs
@@ -133,11 +133,12 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
 
     leaves int64 (>= n_leaves, 2): (leaf of A, leaf of B) node indices; prim_ids
     hold mesh-local face indices; obj_a, obj_b: the two objects (Placed). p, q:
-    float64 (3, 3) scratch. counts: int64 rows.COUNT_* counters. Returns (out, n_out)
-    with out int64 (cap, 2) of mesh-local triangle indices.
+    float64 (3, 3) scratch. counts: int64 rows.COUNT_* counters. out: int64 (cap, 2)
+    mesh-local triangle indices, n_out rows filled and room for every pair of the leaf
+    pairs after them (the caller makes it: with_room and triangle_pair_count). Returns
+    the new n_out.
     """
-    out = with_room(out, n_out, n_out + triangle_pair_count(leaves, n_leaves, count))
-    for k in range(n_leaves):  # out has room for every pair: it is not rebound in here
+    for k in range(n_leaves):
         la = leaves[k, 0]
         lb = leaves[k, 1]
         for ia in range(first[la], first[la] + count[la]):
@@ -152,8 +153,8 @@ def intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_
                     out[n_out, 1] = tri_b
                     n_out += 1
                     if first_only:
-                        return out, n_out
-    return out, n_out
+                        return n_out
+    return n_out
 
 
 @njit_borrowing

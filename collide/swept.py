@@ -112,6 +112,7 @@ from .narrow import (
     stable_order,
     stamp_is,
     swept_candidates,
+    triangle_pair_count,
 )
 from .packed import to_world
 from .rows import (
@@ -409,10 +410,11 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers
             near[n_near, 0] = leaves[k, 0]
             near[n_near, 1] = leaves[k, 1]
             n_near += 1
-    tri, n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
-                                        _placed(ps, rp, a, f, static, frame.stamp, frame.world),
-                                        _placed(ps, rp, b, f, static, frame.stamp, frame.world),
-                                        buffers.frame_pairs, np.int64(0), np.bool_(True), scratch.p, scratch.q, counts)
+    tri = with_room(buffers.frame_pairs, np.int64(0), triangle_pair_count(near, n_near, ps.node_count))
+    n_tri = intersecting_triangles(near, n_near, ps.node_first, ps.node_count, ps.prim_ids,
+                                   _placed(ps, rp, a, f, static, frame.stamp, frame.world),
+                                   _placed(ps, rp, b, f, static, frame.stamp, frame.world),
+                                   tri, np.int64(0), np.bool_(True), scratch.p, scratch.q, counts)
     buffers = Buffers(near, buffers.leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1

@@ -96,7 +96,8 @@ def sweep_and_prune(lo, hi):
         end = s + 1  # boxes s + 1 .. end - 1 start within box s along the sweep axis
         while end < n and not box[end, 0] > s_hi0:
             end += 1
-        pairs = with_room(pairs, k, k + end - s)
+        if pairs.shape[0] < k + end - s:  # a rebinding costs reference counting: only when it grows
+            pairs = with_room(pairs, k, k + end - s)
         for r in range(s + 1, end):
             # without a branch: every candidate is written, and kept (k + 1) when the boxes
             # also meet along the other axes. Most do not, unpredictably: branching on that
@@ -358,8 +359,10 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
         margin_b += dev_b
     k = np.int64(0)
     while top > 0 and k < max_out:
-        stack = with_room(stack, top, top + DESCENT_BATCH + 1)
-        out = with_room(out, k, k + DESCENT_BATCH)
+        if stack.shape[0] < top + DESCENT_BATCH + 1:  # rebound only when they grow (see DESCENT_BATCH)
+            stack = with_room(stack, top, top + DESCENT_BATCH + 1)
+        if out.shape[0] < k + DESCENT_BATCH:
+            out = with_room(out, k, k + DESCENT_BATCH)
         for _ in range(DESCENT_BATCH):  # no buffer is rebound in here (see DESCENT_BATCH)
             if top == 0 or k >= max_out:
                 break
@@ -514,9 +517,12 @@ def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, 
     margin_b = margin + dev_b
     k = np.int64(0)
     while top > 0:
-        stack = with_room(stack, top, top + DESCENT_BATCH + 1)
-        held = with_room(held, top, stack.shape[0])
-        out = with_room(out, k, k + DESCENT_BATCH)
+        if stack.shape[0] < top + DESCENT_BATCH + 1:  # rebound only when they grow (see DESCENT_BATCH)
+            stack = with_room(stack, top, top + DESCENT_BATCH + 1)
+        if held.shape[0] < stack.shape[0]:
+            held = with_room(held, top, stack.shape[0])
+        if out.shape[0] < k + DESCENT_BATCH:
+            out = with_room(out, k, k + DESCENT_BATCH)
         for _ in range(DESCENT_BATCH):  # no buffer is rebound in here (see DESCENT_BATCH)
             if top == 0:
                 break

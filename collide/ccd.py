@@ -184,6 +184,10 @@ MAX_COORDINATE = 1e150
 _ROW = 7
 
 
+#: sub-steps the screw-motion search (motion._first_on_path) keeps at most
+PATH_STACK = 128
+
+
 class CCDWork(NamedTuple):
     """Scratch buffers of the CCD queries, made once (ccd_work) and reused by every query
     of a caller: a query then allocates nothing."""
@@ -198,6 +202,8 @@ class CCDWork(NamedTuple):
     bounds: np.ndarray   #: float64 (6,)
     proj: np.ndarray     #: float64 (6, 8)
     counts: np.ndarray   #: int64 (COUNT_WIDTH,): counters for callers that keep none
+    path: np.ndarray     #: float64 (4, 3, 3): the sub-step search's triangles (motion._first_on_path)
+    path_stack: np.ndarray  #: float64 (PATH_STACK, 2): its sub-steps still to search
 
 
 @njit(cache=True)
@@ -205,7 +211,7 @@ def ccd_work():
     """A fresh CCDWork."""
     return CCDWork(np.empty((4, 3)), np.empty((4, 3)), np.empty((HEAP_SIZE, _ROW)), np.empty(_ROW),
                    np.empty((8, 3)), np.empty((8, 3)), np.empty((10, 3)), np.empty((6, 3)), np.empty(6),
-                   np.empty((6, 8)), np.zeros(COUNT_WIDTH, np.int64))
+                   np.empty((6, 8)), np.zeros(COUNT_WIDTH, np.int64), np.empty((4, 3, 3)), np.empty((PATH_STACK, 2)))
 
 
 # --- F and its rounding bound -----------------------------------------------------------------

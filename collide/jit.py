@@ -48,7 +48,7 @@ def njit_allocating(function):
     """``njit(cache=True)`` with numba's runtime (allocation, reference counting) also when
     an njit_borrowing helper calls it, which would otherwise compile it without: for a
     helper that allocates scratch arrays of its own and returns none (the exact
-    predicates' expansions, the sub-step search's stack)."""
+    predicates' expansions)."""
     return njit(cache=True, _nrt=True)(function)
 
 

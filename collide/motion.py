@@ -75,7 +75,7 @@ import numpy as np
 
 from . import config
 from .ccd import disjoint_pair_toi, triangle_pair_toi
-from .jit import njit, njit_allocating, njit_borrowing
+from .jit import njit, njit_borrowing
 from .predicates import triangles_intersect
 from .rows import COUNT_SPLITS
 from .windows import swept_window
@@ -505,16 +505,13 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
     return -np.inf if backwards and t == np.inf else t
 
 
-@njit_allocating
+@njit_borrowing
 def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts):
     """The sub-step refinement of the module docstring. Forwards: earliest contact up to
     limit; backwards: latest contact from limit on (the same search with time running
     from 1 to 0). inf when none."""
-    pa = np.empty((3, 3))
-    qa = np.empty((3, 3))
-    pb = np.empty((3, 3))
-    qb = np.empty((3, 3))
-    stack = np.empty((128, 2))  # sub-steps [a, b] still to search; the top one comes first in time
+    pa, qa, pb, qb = work.path[0], work.path[1], work.path[2], work.path[3]
+    stack = work.path_stack  # sub-steps [a, b] still to search; the top one comes first in time
     # only contacts from the limit on (backwards: up to it) are wanted: the search starts on
     # that part of the step, whose shorter chords have the smaller deviation bound dev h^2
     stack[0, 0] = min(max(limit, 0.0), 1.0) if backwards else 0.0
@@ -547,7 +544,7 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
             stack[n, 1] = b if t_hi >= 1.0 else max(min(np.nextafter(a + t_hi * h, np.inf), b), a)
             n += 1
             continue
-        final = sub_dev <= 0.25 * dist_tol or h <= MIN_SUBSTEP or splits >= MAX_SUBSTEPS or n + 2 > 128
+        final = sub_dev <= 0.25 * dist_tol or h <= MIN_SUBSTEP or splits >= MAX_SUBSTEPS or n + 2 > stack.shape[0]
         # only the final answer needs time_tol; before that any lower bound trims the sub-step
         sub_time_tol = time_tol / max(h, MIN_SUBSTEP) if final else COARSE_TIME_TOL
         # the limit in units of the sub-step, rounded outward

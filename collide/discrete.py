@@ -83,7 +83,7 @@ FIRST_HIT_BATCH = 8
 NEAR_HIT_BATCH = 1
 
 
-@njit(cache=True)
+@njit_borrowing
 def object_margins(ps, rp0, rp1, out):
     """Rounding margin (length units) of each object over poses rp0 and rp1 (N, 3, 4) into out (N,)."""
     for o in range(rp0.shape[0]):
@@ -128,7 +128,7 @@ def pair_scratch():
                        np.empty((3, 3)))
 
 
-@njit(cache=True)
+@njit_borrowing
 def start_descent(ps, rp0, rp1, motion, a, b, scratch, stack):
     """Set up the tandem descent of objects a and b for poses rp0 -> rp1 (N, 3, 4) and
     motion rows (N, MOTION_WIDTH): their poses and motions into scratch (PairScratch),
@@ -147,7 +147,7 @@ def start_descent(ps, rp0, rp1, motion, a, b, scratch, stack):
     return np.int64(1)  # not a literal: one compiled overlapping_leaves
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # part of its callers: no reference counting of ps per object pair
 def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves, counts):
     """All overlapping BVH leaf pairs of objects a and b under broad's ``rule`` for poses
     rp0 -> rp1 (N, 3, 4) and motion rows (N, MOTION_WIDTH). scratch: PairScratch;
@@ -166,7 +166,7 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
     return stack, leaves, n
 
 
-@njit(cache=True)
+@njit_borrowing
 def _smallest_pair(tri, n):
     best = 0
     for k in range(1, n):
@@ -185,7 +185,7 @@ def _placed(ps, rp, o, f, static, stamp, world):
     return Placed(body, faces, rp[o], world, stamp, ps.world_start[o], -2 if static[o] else f)
 
 
-@njit(cache=True)
+@njit_borrowing
 def _centroid(ps, o, t, out):
     """Centroid of triangle t (mesh-local) of object o's mesh, in its body frame, into out (3,)."""
     first = ps.vert_start[ps.object_mesh[o]]
@@ -195,7 +195,7 @@ def _centroid(ps, o, t, out):
                   + ps.vertices[first + face[2], i]) / 3.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # part of its callers: no reference counting of ps per object pair
 def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_only, near_a, near_b, scratch,
                     stack, leaves, tri, counts):
     """Intersecting triangle pairs of objects a and b at frame f (pose rp (N, 3, 4); still:
@@ -227,7 +227,7 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
     return stack, leaves, tri, n_tri
 
 
-@njit(cache=True)
+@njit_borrowing
 def key_row(keys, key):
     """Row of key in sorted keys (int64), or -1."""
     i = np.searchsorted(keys, key)
@@ -344,7 +344,7 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
 
 # --- the smallest touching triangle pair (what contacts report) ---------------------------------
 
-@njit(cache=True)
+@njit_borrowing
 def _before(a0, b0, a1, b1):
     """(a0, b0) < (a1, b1) lexicographically."""
     return a0 < a1 or (a0 == a1 and b0 < b1)

@@ -85,7 +85,7 @@ from .discrete import (
     pair_scratch,
 )
 from .filters import pair_selected
-from .jit import njit
+from .jit import njit, njit_borrowing
 from .motion import (
     M_ETA,
     M_THETA,
@@ -174,7 +174,7 @@ def _place(vertices, v, pose, world, row):
         world[row, c] = pose[c, 3] + pose[c, 0] * x + pose[c, 1] * y + pose[c, 2] * z
 
 
-@njit(cache=True)
+@njit_borrowing
 def _world_centre(centre, m, rp, o):
     """Sphere centre (M, 3) of mesh m placed by pose rp (N, 3, 4) of object o: a 3-tuple
     (indices, not array views: no allocation or reference counting per pair and step)."""
@@ -317,7 +317,7 @@ def _sub_step_window(ps, rp0, rp1, motion, margin, a, b, j, n_sub, pair_margin, 
     return Buffers(stack, leaves, tri_pairs, buffers.frame_pairs), t_first, t_last, tri_a, tri_b
 
 
-@njit(cache=True)
+@njit_borrowing
 def _step_time(j, u, n_sub, upward):
     """Fraction of the step at fraction u of sub-step j of n_sub, rounded down (up when
     upward) unless exact."""
@@ -545,10 +545,11 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
         if leaf_key > bound or leaf_key == np.inf or (backwards and t == 1.0):
             break  # nothing pending comes before it either
         one = leaves[order[opened]:order[opened] + 1]
+        n_one = np.int64(1)  # not a literal (see above _candidates)
         opened += 1
-        place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, 1, state.stamp0, state.world0, state.stamp1,
+        place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, n_one, state.stamp0, state.world0, state.stamp1,
                           state.world1)
-        tri_pairs, n, tri_windows = _candidates(ps, motion, state.world0, state.world1, a, b, 1, one, dist_tol,
+        tri_pairs, n, tri_windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_one, one, dist_tol,
                                                 tri_pairs, counts)
         for r in range(n):
             pending = pending_push(pending, -tri_windows[r, 1] if backwards else tri_windows[r, 0], tri_pairs[r, 0],
@@ -556,7 +557,7 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
 
-@njit(cache=True)
+@njit_borrowing
 def step_pair_key(k, a, b, n_objects):
     """int64 key of object pair (a, b) at frame (or step) k, ordered by k, then a, then b."""
     return (k * n_objects + a) * n_objects + b

@@ -1,7 +1,8 @@
 """How collide compiles its numba kernels, and where it keeps them compiled.
 
-Every kernel module takes ``njit`` (and ``prange``) from here, so that importing any of
-them first installs collide's kernel cache: one folder per collide source, named by
+Every kernel module takes ``njit`` (and ``prange``, and the two variants below for helpers
+that borrow their arrays or allocate their own: ``njit_borrowing``, ``njit_allocating``)
+from here, so that importing any of them first installs collide's kernel cache: one folder per collide source, named by
 the content of collide's source files, not by where they are installed. The same
 kernels compiled by a test run in the repository, by the installed command line, or in
 another virtual environment at another path are found and reused; and any change to

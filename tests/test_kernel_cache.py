@@ -179,24 +179,63 @@ def _holds_array(numba_type):
     return isinstance(numba_type, types.BaseTuple) and any(_holds_array(t) for t in numba_type.types)
 
 
+def _turning_mover(traj):
+    """two_boxes' trajectory with the mover also turning about z, a quarter turn over the
+    run (screw motion between frames): written next to it."""
+    import numpy as np
+    from conftest import write_trajectory
+    n = 13
+    angle = np.linspace(0.0, 0.5 * np.pi, n)
+    orientation = np.zeros((n, 1, 4))
+    orientation[:, 0, 0], orientation[:, 0, 3] = np.cos(0.5 * angle), np.sin(0.5 * angle)
+    position = np.zeros((n, 1, 3))
+    position[:, 0, 0] = np.linspace(-3.0, 3.0, n)
+    return write_trajectory(traj.parent / "turning.h5", np.arange(n) * 0.1, ["mover"], position, orientation)
+
+
+# scans twice (continuous, discrete, discrete with every triangle pair), the second time with
+# numba's allocation statistics counted: what it allocated and freed
+ALLOCATIONS = """
+import gc, json, sys
+sys.path.insert(0, sys.argv[1])
+import collide
+from numba.core.runtime import rtsys
+def scans():
+    for mode, pairs in (("continuous", False), ("discrete", False), ("discrete", True)):
+        collide.scan(sys.argv[2], sys.argv[3], mode=mode, workers=1, triangle_pairs=pairs)
+    gc.collect()
+scans()
+before = rtsys.get_allocation_stats()
+scans()
+after = rtsys.get_allocation_stats()
+print(json.dumps({k: getattr(after, k) - getattr(before, k) for k in ("alloc", "free", "mi_alloc", "mi_free")}))
+"""
+
+
+def test_scans_free_every_array_numba_allocates(two_boxes):
+    """With numba's allocation statistics on (NUMBA_NRT_STATS=1), scans of a turning body
+    free every array numba allocates: one that a helper compiled without reference
+    counting (jit.njit_borrowing) got back from a call would never be freed."""
+    import os
+    meshes, traj = two_boxes
+    env = dict(os.environ, NUMBA_NRT_STATS="1")
+    proc = subprocess.run([sys.executable, "-c", ALLOCATIONS, str(REPO), str(meshes), str(_turning_mover(traj))],
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    counted = json.loads(proc.stdout)
+    assert counted["mi_alloc"] > 100  # the statistics were on, and the scans allocated
+    assert counted["mi_free"] == counted["mi_alloc"] and counted["free"] == counted["alloc"], counted
+
+
 def test_borrowing_helpers_are_given_no_array_back(two_boxes):
     """A helper compiled by jit.njit_borrowing keeps no reference count: an array it
     returned, or was returned by a helper it calls, would be counted once too few or too
     many (freed while in use, or never freed). So no helper it reaches, marked or not,
     returns one, in any version compiled for the scans (numba itself refuses to compile
     an allocation in them)."""
-    import numpy as np
-    from conftest import write_trajectory
-
     import collide
     meshes, traj = two_boxes
-    n = 13  # the mover also turns about z, a quarter turn over the run: screw motion between frames
-    angle = np.linspace(0.0, 0.5 * np.pi, n)
-    orientation = np.zeros((n, 1, 4))
-    orientation[:, 0, 0], orientation[:, 0, 3] = np.cos(0.5 * angle), np.sin(0.5 * angle)
-    position = np.zeros((n, 1, 3))
-    position[:, 0, 0] = np.linspace(-3.0, 3.0, n)
-    turning = write_trajectory(traj.parent / "turning.h5", np.arange(n) * 0.1, ["mover"], position, orientation)
+    turning = _turning_mover(traj)
     for trajectory, mode in ((traj, "discrete"), (turning, "continuous"), (turning, "discrete")):
         assert collide.scan(meshes, trajectory, mode=mode, workers=1).contacts["object_a"].size > 0
 

@@ -96,7 +96,7 @@ def sweep_and_prune(lo, hi):
         end = s + 1  # boxes s + 1 .. end - 1 start within box s along the sweep axis
         while end < n and not box[end, 0] > s_hi0:
             end += 1
-        if pairs.shape[0] < k + end - s:  # a rebinding costs reference counting: only when it grows
+        if pairs.shape[0] < k + end - s:  # rebound only when it grows (see with_room)
             pairs = with_room(pairs, k, k + end - s)
         for r in range(s + 1, end):
             # without a branch: every candidate is written, and kept (k + 1) when the boxes
@@ -609,7 +609,9 @@ def _moving_node_box(box, rp0, rp1):
 
 @njit(cache=True)
 def with_room(rows, n, need):
-    """rows (cap, w), grown (grown_rows, first n rows kept) until it has at least ``need`` rows."""
+    """rows (cap, w), grown (grown_rows, first n rows kept) until it has at least ``need`` rows.
+    Rebinding a buffer to the result costs reference counting even when nothing grows, so
+    loops run per node pair or per box call it only when ``rows.shape[0] < need``."""
     while rows.shape[0] < need:
         rows = grown_rows(rows, n)
     return rows

@@ -1,12 +1,25 @@
 """The kernel cache is keyed by content: copies of collide at other paths reuse compiled
-kernels, and a changed source file never loads a stale one."""
+kernels, and a changed source file never loads a stale one; helpers compiled without
+reference counting (jit.njit_borrowing) are used as that allows."""
+import ast
+import importlib
+import inspect
 import json
+import os
+import pkgutil
 import shutil
 import subprocess
 import sys
+import textwrap
+import types as pytypes
 
+import numpy as np
 import pytest
-from conftest import REPO
+from conftest import REPO, write_trajectory
+from numba.core import types as numba_types
+from numba.core.registry import CPUDispatcher
+
+import collide
 
 # compiles one small kernel (the pair filter) and reports how many functions numba compiled
 PROBE = """
@@ -119,12 +132,6 @@ def test_warmup_command_adds_the_lbvh_builder_only_when_asked(monkeypatch):
 
 def _collide_dispatchers():
     """Every numba dispatcher defined in collide's modules."""
-    import importlib
-    import pkgutil
-
-    from numba.core.registry import CPUDispatcher
-
-    import collide
     found = {}
     for info in pkgutil.iter_modules(collide.__path__):
         module = importlib.import_module(f"collide.{info.name}")
@@ -136,12 +143,6 @@ def _collide_dispatchers():
 
 def _called_dispatchers(dispatcher):
     """The dispatchers a kernel's source calls: by name, or as module.name."""
-    import ast
-    import inspect
-    import textwrap
-    import types as pytypes
-
-    from numba.core.registry import CPUDispatcher
     names = dispatcher.py_func.__globals__
     called = []
     for node in ast.walk(ast.parse(textwrap.dedent(inspect.getsource(dispatcher.py_func)))):
@@ -173,17 +174,14 @@ def _compiled_return_types(dispatcher):
 
 
 def _holds_array(numba_type):
-    from numba.core import types
-    if isinstance(numba_type, types.Array):
+    if isinstance(numba_type, numba_types.Array):
         return True
-    return isinstance(numba_type, types.BaseTuple) and any(_holds_array(t) for t in numba_type.types)
+    return isinstance(numba_type, numba_types.BaseTuple) and any(_holds_array(t) for t in numba_type.types)
 
 
 def _turning_mover(traj):
     """two_boxes' trajectory with the mover also turning about z, a quarter turn over the
     run (screw motion between frames): written next to it."""
-    import numpy as np
-    from conftest import write_trajectory
     n = 13
     angle = np.linspace(0.0, 0.5 * np.pi, n)
     orientation = np.zeros((n, 1, 4))
@@ -216,7 +214,6 @@ def test_scans_free_every_array_numba_allocates(two_boxes):
     """With numba's allocation statistics on (NUMBA_NRT_STATS=1), scans of a turning body
     free every array numba allocates: one that a helper compiled without reference
     counting (jit.njit_borrowing) got back from a call would never be freed."""
-    import os
     meshes, traj = two_boxes
     env = dict(os.environ, NUMBA_NRT_STATS="1")
     proc = subprocess.run([sys.executable, "-c", ALLOCATIONS, str(REPO), str(meshes), str(_turning_mover(traj))],
@@ -233,7 +230,6 @@ def test_borrowing_helpers_are_given_no_array_back(two_boxes):
     many (freed while in use, or never freed). So no helper it reaches, marked or not,
     returns one, in any version compiled for the scans (numba itself refuses to compile
     an allocation in them)."""
-    import collide
     meshes, traj = two_boxes
     turning = _turning_mover(traj)
     for trajectory, mode in ((traj, "discrete"), (turning, "continuous"), (turning, "discrete")):

@@ -7,7 +7,7 @@ reference counting on every call in numba.
 """
 import numpy as np
 
-from .jit import njit_borrowing
+from .jit import njit, njit_borrowing
 
 
 @njit_borrowing
@@ -116,56 +116,75 @@ def cross_window(p0, p1, q0, q1, margin, largest, t_lo, t_hi):
     """[t_lo, t_hi] restricted by swept_window_of's tests along the triangles' normals and
     the cross products of their edges at the step's start; largest: the largest
     |coordinate| of the four corner sets (largest_coordinate), for rounding."""
-    for triangle in (p0, q0):  # the normals
-        t_lo, t_hi = _clip_along_cross(triangle, 0, 1, triangle, 0, 2, p0, p1, q0, q1, margin, largest, t_lo, t_hi)
+    xs, ys, zs = _coordinates(p0, p1, q0, q1)
+    for side in range(2):  # the normals: edge (0, 1) x edge (0, 2)
+        u = p0 if side == 0 else q0
+        t_lo, t_hi = _clip_along(_cross(u, 0, 1, u, 0, 2), xs, ys, zs, margin, largest, t_lo, t_hi)
         if t_lo > t_hi:
             return t_lo, t_hi
     for i in range(3):  # edge (i, i + 1) of p against edge (j, j + 1) of q
         for j in range(3):
-            t_lo, t_hi = _clip_along_cross(p0, i, (i + 1) % 3, q0, j, (j + 1) % 3, p0, p1, q0, q1, margin, largest,
-                                           t_lo, t_hi)
+            t_lo, t_hi = _clip_along(_cross(p0, i, (i + 1) % 3, q0, j, (j + 1) % 3), xs, ys, zs, margin, largest,
+                                     t_lo, t_hi)
             if t_lo > t_hi:
                 return t_lo, t_hi
     return t_lo, t_hi
 
 
-@njit_borrowing
-def _clip_along_cross(u, u0, u1, v, v0, v1, p0, p1, q0, q1, margin, size, t_lo, t_hi):
-    """_swept_window_of's test along n = (u[u1] - u[u0]) x (v[v1] - v[v0]), corners of
-    triangles u and v (9-tuples): [t_lo, t_hi] restricted to where the blended extents
-    of p and q along n come within margin |n|; unchanged when n is zero or not finite
-    (parallel edges, a degenerate or huge triangle). ``size``: the largest |coordinate|
-    of the four corner sets, for the rounding of the dot products (at most a few ulps
-    of |n|_1 size)."""
+@njit(cache=True, inline="always")
+def _coordinates(p0, p1, q0, q1):
+    """The x, y and z coordinates of the corners of p0, p1, q0 and q1 (9-tuples), three
+    per triangle in that order, as three 12-tuples: laid out so that the 12 dot products
+    of _clip_along vectorise."""
+    xs = (p0[0], p0[3], p0[6], p1[0], p1[3], p1[6], q0[0], q0[3], q0[6], q1[0], q1[3], q1[6])
+    ys = (p0[1], p0[4], p0[7], p1[1], p1[4], p1[7], q0[1], q0[4], q0[7], q1[1], q1[4], q1[7])
+    zs = (p0[2], p0[5], p0[8], p1[2], p1[5], p1[8], q0[2], q0[5], q0[8], q1[2], q1[5], q1[8])
+    return xs, ys, zs
+
+
+@njit(cache=True, inline="always")
+def _cross(u, u0, u1, v, v0, v1):
+    """(u[u1] - u[u0]) x (v[v1] - v[v0]) for corners of triangles u and v (9-tuples)."""
     ux = u[3 * u1] - u[3 * u0]
     uy = u[3 * u1 + 1] - u[3 * u0 + 1]
     uz = u[3 * u1 + 2] - u[3 * u0 + 2]
     vx = v[3 * v1] - v[3 * v0]
     vy = v[3 * v1 + 1] - v[3 * v0 + 1]
     vz = v[3 * v1 + 2] - v[3 * v0 + 2]
-    nx = uy * vz - uz * vy
-    ny = uz * vx - ux * vz
-    nz = ux * vy - uy * vx
+    return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+
+
+@njit(cache=True, inline="always")
+def _clip_along(n, xs, ys, zs, margin, size, t_lo, t_hi):
+    """swept_window_of's test along n (3-tuple): [t_lo, t_hi] restricted to where the
+    blended extents of p and q along n come within margin |n|; unchanged when n is zero
+    or not finite (parallel edges, a degenerate or huge triangle). xs, ys, zs: the
+    corners of p0, p1, q0, q1 (_coordinates). ``size``: the largest |coordinate| of the
+    four corner sets, for the rounding of the dot products (at most a few ulps of |n|_1
+    size)."""
+    nx, ny, nz = n
     length = np.sqrt(nx * nx + ny * ny + nz * nz)
     if not length > 0.0 or not np.isfinite(length):
         return t_lo, t_hi
     # rounding: a few ulps of |n|_1 size, and 1e-300 for products that underflow
     m = margin * length * (1.0 + _WINDOW_ULPS) + _WINDOW_ULPS * size * (abs(nx) + abs(ny) + abs(nz)) + 1e-300
-    p_lo0, p_hi0 = _extent(p0, nx, ny, nz)
-    p_lo1, p_hi1 = _extent(p1, nx, ny, nz)
-    q_lo0, q_hi0 = _extent(q0, nx, ny, nz)
-    q_lo1, q_hi1 = _extent(q1, nx, ny, nz)
+    d = (nx * xs[0] + ny * ys[0] + nz * zs[0], nx * xs[1] + ny * ys[1] + nz * zs[1],
+         nx * xs[2] + ny * ys[2] + nz * zs[2], nx * xs[3] + ny * ys[3] + nz * zs[3],
+         nx * xs[4] + ny * ys[4] + nz * zs[4], nx * xs[5] + ny * ys[5] + nz * zs[5],
+         nx * xs[6] + ny * ys[6] + nz * zs[6], nx * xs[7] + ny * ys[7] + nz * zs[7],
+         nx * xs[8] + ny * ys[8] + nz * zs[8], nx * xs[9] + ny * ys[9] + nz * zs[9],
+         nx * xs[10] + ny * ys[10] + nz * zs[10], nx * xs[11] + ny * ys[11] + nz * zs[11])
+    p_lo0, p_hi0 = _extent(d[0], d[1], d[2])
+    p_lo1, p_hi1 = _extent(d[3], d[4], d[5])
+    q_lo0, q_hi0 = _extent(d[6], d[7], d[8])
+    q_lo1, q_hi1 = _extent(d[9], d[10], d[11])
     t_lo, t_hi = clip_rising(p_hi0 - q_lo0 + m, p_hi1 - q_lo1 + m, t_lo, t_hi)
     return clip_rising(q_hi0 - p_lo0 + m, q_hi1 - p_lo1 + m, t_lo, t_hi)
 
 
-@njit_borrowing
-def _extent(corners, nx, ny, nz):
-    """(min, max) of n . corner over the three corners (a 9-tuple)."""
-    lo = np.inf
-    hi = -np.inf
-    for i in range(3):
-        d = nx * corners[3 * i] + ny * corners[3 * i + 1] + nz * corners[3 * i + 2]
-        lo = min(lo, d)
-        hi = max(hi, d)
+@njit(cache=True, inline="always")
+def _extent(d0, d1, d2):
+    """(min, max) of three projections, folded from (inf, -inf) in order."""
+    lo = min(min(min(np.inf, d0), d1), d2)
+    hi = max(max(max(-np.inf, d0), d1), d2)
     return lo, hi

@@ -50,7 +50,6 @@ from .motion import (
     M_THETA,
     box_deviation,
     chord_interval,
-    chord_interval_of,
     pose_tuple,
     sphere_deviation,
     world_interval_of,
@@ -451,15 +450,46 @@ _HELD_B = 2.0
 
 
 @njit_borrowing
-def _swept_node_box(box, rp0, rp1, d):
+def _swept_node_box(box, rp0, rp1, abs0, abs1, d):
     """World box (lo x, y, z, hi x, y, z) holding a node's box (node_box 6-tuple) over the
-    step: its chord box (motion.chord_interval_of between pose tuples rp0 and rp1)
+    step: its chord box (motion.chord_interval_of between pose tuples rp0 and rp1, whose
+    rotations' absolute values are the 9-tuples abs0, abs1: _rotation_magnitudes)
     widened by d (its deviation bound and the rounding margin); the boxes of
-    _swept_boxes_overlap. Tuples only (no reference counting per node)."""
-    x0, x1 = chord_interval_of(box, rp0, rp1, 0)
-    y0, y1 = chord_interval_of(box, rp0, rp1, 1)
-    z0, z1 = chord_interval_of(box, rp0, rp1, 2)
+    _swept_boxes_overlap. The same arithmetic as chord_interval_of, with the box's
+    centre and half extents and the |R| computed once per box, not once per axis and
+    pose. Tuples only (no reference counting per node)."""
+    c = (0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5]))
+    h = (0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2]))
+    x0, x1 = _chord_interval(c, h, rp0, rp1, abs0, abs1, 0)
+    y0, y1 = _chord_interval(c, h, rp0, rp1, abs0, abs1, 1)
+    z0, z1 = _chord_interval(c, h, rp0, rp1, abs0, abs1, 2)
     return x0 - d, y0 - d, z0 - d, x1 + d, y1 + d, z1 + d
+
+
+@njit(cache=True, inline="always")
+def _chord_interval(c, h, rp0, rp1, abs0, abs1, i):
+    """motion.chord_interval_of for a box of centre c and half extents h (3-tuples)."""
+    lo0, hi0 = _placed_interval(c, h, rp0, abs0, i)
+    lo1, hi1 = _placed_interval(c, h, rp1, abs1, i)
+    return min(lo0, lo1), max(hi0, hi1)
+
+
+@njit(cache=True, inline="always")
+def _placed_interval(c, h, rp, abs_r, i):
+    """motion.world_interval_of for a box of centre c and half extents h (3-tuples)."""
+    centre = rp[4 * i + 3]
+    extent = 0.0
+    for j in range(3):
+        centre += rp[4 * i + j] * c[j]
+        extent += abs_r[3 * i + j] * h[j]
+    return centre - extent, centre + extent
+
+
+@njit_borrowing
+def _rotation_magnitudes(rp):
+    """|R| of a pose tuple rp = [R | t] (12-tuple): a 9-tuple, row by row."""
+    return (abs(rp[0]), abs(rp[1]), abs(rp[2]), abs(rp[4]), abs(rp[5]), abs(rp[6]), abs(rp[8]), abs(rp[9]),
+            abs(rp[10]))
 
 
 @njit_borrowing
@@ -515,6 +545,8 @@ def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, 
         dev_a, dev_b = descent_deviations(lo, hi, pose, motion, stack, top)
     margin_a = margin + dev_a
     margin_b = margin + dev_b
+    abs_a0, abs_a1 = _rotation_magnitudes(rp_a0), _rotation_magnitudes(rp_a1)
+    abs_b0, abs_b1 = _rotation_magnitudes(rp_b0), _rotation_magnitudes(rp_b1)
     k = np.int64(0)
     while top > 0:
         if stack.shape[0] < top + DESCENT_BATCH + 1:  # rebound only when they grow (see DESCENT_BATCH)
@@ -533,10 +565,16 @@ def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, 
             side = held[top, _HELD_SIDE]
             own_a = node_box(lo, hi, na)
             own_b = node_box(lo, hi, nb)
-            box_b = _held_box(held, top) if side == _HELD_B else _swept_node_box(own_b, rp_b0, rp_b1, margin_b)
+            if side == _HELD_B:
+                box_b = _held_box(held, top)
+            else:
+                box_b = _swept_node_box(own_b, rp_b0, rp_b1, abs_b0, abs_b1, margin_b)
             if rigid and _apart(own_a, box_b):
                 continue  # box_a not needed
-            box_a = _held_box(held, top) if side == _HELD_A else _swept_node_box(own_a, rp_a0, rp_a1, margin_a)
+            if side == _HELD_A:
+                box_a = _held_box(held, top)
+            else:
+                box_a = _swept_node_box(own_a, rp_a0, rp_a1, abs_a0, abs_a1, margin_a)
             if _apart(own_b, box_a) if rigid else _apart(box_a, box_b):
                 continue
             leaf_a = count[na] > 0

@@ -215,17 +215,17 @@ def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_
                     windows[n, 0] = t_lo
                     windows[n, 1] = t_hi
                     n += 1
-    span = 0  # order by (tri_a, tri_b): keys tri_a * span + tri_b
-    for r in range(n):
-        span = max(span, out[r, 1] + 1)
-    keys = np.empty(n, np.int64)
-    for r in range(n):
-        keys[r] = out[r, 0] * span + out[r, 1]
-    order = stable_order(keys)
-    windows = windows[:n]
-    reorder_rows(out, order)
-    reorder_rows(windows, order)
-    return out, n, windows
+    if n > 1:  # order by (tri_a, tri_b): keys tri_a * span + tri_b (most calls find 0 or 1: no scratch)
+        span = 0
+        for r in range(n):
+            span = max(span, out[r, 1] + 1)
+        keys = np.empty(n, np.int64)
+        for r in range(n):
+            keys[r] = out[r, 0] * span + out[r, 1]
+        order = stable_order(keys)
+        reorder_rows(out, order)
+        reorder_rows(windows, order)
+    return out, n, windows[:n]
 
 
 class Pending(NamedTuple):

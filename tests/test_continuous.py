@@ -443,6 +443,25 @@ def _random_pose(rng, centre, spread, angle):
     return pose
 
 
+def test_swept_node_box_is_the_chord_box_to_the_last_bit():
+    """broad._swept_node_box (centre, half extents and |R| computed once per box) equals
+    the chord box motion.chord_interval_of computes axis by axis and pose by pose,
+    widened by d, bit for bit: random boxes, turns and scales."""
+    from collide.broad import _rotation_magnitudes, _swept_node_box
+    from collide.motion import chord_interval_of, pose_tuple
+    rng = np.random.default_rng(31)
+    for k in range(300):
+        scale = 10.0 ** rng.integers(-4, 5)
+        lo = rng.normal(size=3) * scale
+        box = tuple(lo) + tuple(lo + rng.uniform(0, 1, 3) * scale)
+        rp0 = pose_tuple(_random_pose(rng, np.zeros(3), scale, np.pi))
+        rp1 = pose_tuple(_random_pose(rng, np.zeros(3), scale, np.pi))
+        d = rng.uniform(0, 1e-6) * scale
+        expected = [chord_interval_of(box, rp0, rp1, i) for i in range(3)]
+        expected = tuple(e[0] - d for e in expected) + tuple(e[1] + d for e in expected)
+        assert _swept_node_box(box, rp0, rp1, _rotation_magnitudes(rp0), _rotation_magnitudes(rp1), d) == expected
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
     """broad.swept_leaves, which carries the box of each node not yet opened down the

@@ -103,13 +103,14 @@ from .narrow import (
     candidates_contact_window,
     comes_first,
     intersecting_triangles,
+    lazy_order,
     new_pending,
     new_stamps,
+    order_pop,
     pending_first_key,
     pending_pop,
     pending_push,
     pending_size,
-    stable_order,
     stamp_is,
     swept_candidates,
     triangle_pair_count,
@@ -515,7 +516,8 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
             keys[i] = np.inf  # never near: nor are its triangle pairs
         else:
             keys[i] = -windows[i, 1] if backwards else windows[i, 0]
-    order = stable_order(keys)
+    order = lazy_order(keys)  # the leaf pairs in stable_order(keys), handed out as they are opened
+    next_leaf = order_pop(order, n_leaves, keys) if n_leaves > 0 else -1
     pending = new_pending()
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = ccd_work()
@@ -527,7 +529,7 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     opened = 0
     while True:
         bound = -t if backwards else t  # keys beyond it cannot move the contact found
-        leaf_key = keys[order[opened]] if opened < n_leaves else np.inf
+        leaf_key = keys[next_leaf] if opened < n_leaves else np.inf
         if pending_size(pending) > 0 and pending_first_key(pending) < leaf_key:
             key, tri_a, tri_b = pending_pop(pending)
             if key > bound or (backwards and t == 1.0):
@@ -544,9 +546,11 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
             continue
         if leaf_key > bound or leaf_key == np.inf or (backwards and t == 1.0):
             break  # nothing pending comes before it either
-        one = leaves[order[opened]:order[opened] + 1]
+        one = leaves[next_leaf:next_leaf + 1]
         n_one = np.int64(1)  # not a literal (see above _candidates)
         opened += 1
+        if opened < n_leaves:
+            next_leaf = order_pop(order, n_leaves - opened, keys)
         place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, n_one, state.stamp0, state.world0, state.stamp1,
                           state.world1)
         tri_pairs, n, tri_windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_one, one, dist_tol,

@@ -648,3 +648,18 @@ def test_stable_order_is_numpys_stable_argsort():
             ints = rng.integers(0, 4, size=n)
             for keys in (floats, ints):
                 assert np.array_equal(stable_order(keys), np.argsort(keys, kind="stable")), keys
+
+
+def test_lazy_order_hands_out_numpys_stable_argsort():
+    """narrow.lazy_order and order_pop give the indices in numpy's stable order, one at a
+    time, ties (many, with -0.0 == 0.0 and inf) in index order: the order in which the
+    one-sided search opens leaf pairs, whatever the number it opens."""
+    from collide.narrow import lazy_order, order_pop
+    rng = np.random.default_rng(5)
+    for n in [1, 2, 3, 7, 16, 17, 100, 1000]:
+        for _ in range(10):
+            keys = rng.choice([0.0, -0.0, 0.25, 0.5, 1.0, -1.0, np.inf], size=n)
+            keys[rng.random(n) < 0.5] = rng.random()  # some distinct keys too
+            heap = lazy_order(keys)
+            handed = [order_pop(heap, n - i, keys) for i in range(n)]
+            assert handed == list(np.argsort(keys, kind="stable")), keys

@@ -49,10 +49,11 @@ from .motion import (
     M_ETA,
     M_THETA,
     box_deviation,
+    box_deviation_of,
     chord_interval,
+    motion_tuple,
     pose_tuple,
     sphere_deviation,
-    world_interval_of,
 )
 from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
 from .windows import box_window
@@ -611,15 +612,19 @@ def leaf_pair_windows(lo, hi, rp0_a, rp1_a, rp0_b, rp1_b, motion_a, motion_b, di
     of narrow.swept_candidates for any triangle pair of the two leaves, plus rounding, so
     a leaf pair's window holds each of its triangle pairs' windows."""
     windows = np.empty((n_leaves, 2))
+    # poses as tuples, and their |R|, once per call, not once per leaf pair
+    p0_a, p1_a, p0_b, p1_b = pose_tuple(rp0_a), pose_tuple(rp1_a), pose_tuple(rp0_b), pose_tuple(rp1_b)
+    abs0_a, abs1_a = _rotation_magnitudes(p0_a), _rotation_magnitudes(p1_a)
+    abs0_b, abs1_b = _rotation_magnitudes(p0_b), _rotation_magnitudes(p1_b)
+    m_a, m_b = motion_tuple(motion_a), motion_tuple(motion_b)
     for k in range(n_leaves):
-        la = leaves[k, 0]
-        lb = leaves[k, 1]
-        box_a = _moving_node_box(node_box(lo, hi, la), pose_tuple(rp0_a), pose_tuple(rp1_a))
-        box_b = _moving_node_box(node_box(lo, hi, lb), pose_tuple(rp0_b), pose_tuple(rp1_b))
+        leaf_a = node_box(lo, hi, leaves[k, 0])
+        leaf_b = node_box(lo, hi, leaves[k, 1])
+        box_a = _moving_node_box(leaf_a, p0_a, p1_a, abs0_a, abs1_a)
+        box_b = _moving_node_box(leaf_b, p0_b, p1_b, abs0_b, abs1_b)
         largest = max(box_a[12], box_a[13], box_a[14], box_b[12], box_b[13], box_b[14])
-        margin = (dist_tol + (box_deviation(motion_a, lo[la], hi[la], rp0_a)
-                              + box_deviation(motion_b, lo[lb], hi[lb], rp0_b))
-                  + (motion_a[M_ETA] + motion_b[M_ETA])) + _NESTED_ULPS * largest
+        margin = (dist_tol + (box_deviation_of(m_a, leaf_a, p0_a) + box_deviation_of(m_b, leaf_b, p0_b))
+                  + (m_a[M_ETA] + m_b[M_ETA])) + _NESTED_ULPS * largest
         windows[k, 0], windows[k, 1] = box_window(box_a, box_b, margin)
     return windows
 
@@ -631,16 +636,20 @@ _NESTED_ULPS = 64.0 * 2.0 ** -52
 
 
 @njit_borrowing
-def _moving_node_box(box, rp0, rp1):
-    """A node's box (node_box 6-tuple) placed by pose tuples rp0 and rp1 at both ends of
-    the step, in windows.moving_box's layout (15-tuple: for axis c, lo and hi at the
-    start, lo and hi at the end, at 4 c to 4 c + 3; the largest |coordinate| at 12 + c)."""
-    x0, x1 = world_interval_of(box, rp0, 0)
-    x2, x3 = world_interval_of(box, rp1, 0)
-    y0, y1 = world_interval_of(box, rp0, 1)
-    y2, y3 = world_interval_of(box, rp1, 1)
-    z0, z1 = world_interval_of(box, rp0, 2)
-    z2, z3 = world_interval_of(box, rp1, 2)
+def _moving_node_box(box, rp0, rp1, abs0, abs1):
+    """A node's box (node_box 6-tuple) placed by pose tuples rp0 and rp1 (whose |R| are
+    abs0 and abs1: _rotation_magnitudes) at both ends of the step, in windows.moving_box's
+    layout (15-tuple: for axis c, lo and hi at the start, lo and hi at the end, at 4 c to
+    4 c + 3; the largest |coordinate| at 12 + c). The arithmetic of
+    motion.world_interval_of, with the box's centre and half extents computed once."""
+    c = (0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5]))
+    h = (0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2]))
+    x0, x1 = _placed_interval(c, h, rp0, abs0, 0)
+    x2, x3 = _placed_interval(c, h, rp1, abs1, 0)
+    y0, y1 = _placed_interval(c, h, rp0, abs0, 1)
+    y2, y3 = _placed_interval(c, h, rp1, abs1, 1)
+    z0, z1 = _placed_interval(c, h, rp0, abs0, 2)
+    z2, z3 = _placed_interval(c, h, rp1, abs1, 2)
     return (x0, x1, x2, x3, y0, y1, y2, y3, z0, z1, z2, z3, max(abs(x0), abs(x1), abs(x2), abs(x3)),
             max(abs(y0), abs(y1), abs(y2), abs(y3)), max(abs(z0), abs(z1), abs(z2), abs(z3)))
 

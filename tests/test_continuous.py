@@ -444,11 +444,12 @@ def _random_pose(rng, centre, spread, angle):
 
 
 def test_swept_node_box_is_the_chord_box_to_the_last_bit():
-    """broad._swept_node_box (centre, half extents and |R| computed once per box) equals
-    the chord box motion.chord_interval_of computes axis by axis and pose by pose,
-    widened by d, bit for bit: random boxes, turns and scales."""
-    from collide.broad import _rotation_magnitudes, _swept_node_box
-    from collide.motion import chord_interval_of, pose_tuple
+    """broad._swept_node_box and _moving_node_box (centre, half extents and |R| computed
+    once per box) equal the chord box motion.chord_interval_of computes axis by axis and
+    pose by pose, widened by d, and the placed boxes of motion.world_interval_of, bit for
+    bit: random boxes, turns and scales."""
+    from collide.broad import _moving_node_box, _rotation_magnitudes, _swept_node_box
+    from collide.motion import chord_interval_of, pose_tuple, world_interval_of
     rng = np.random.default_rng(31)
     for k in range(300):
         scale = 10.0 ** rng.integers(-4, 5)
@@ -459,7 +460,13 @@ def test_swept_node_box_is_the_chord_box_to_the_last_bit():
         d = rng.uniform(0, 1e-6) * scale
         expected = [chord_interval_of(box, rp0, rp1, i) for i in range(3)]
         expected = tuple(e[0] - d for e in expected) + tuple(e[1] + d for e in expected)
-        assert _swept_node_box(box, rp0, rp1, _rotation_magnitudes(rp0), _rotation_magnitudes(rp1), d) == expected
+        abs0, abs1 = _rotation_magnitudes(rp0), _rotation_magnitudes(rp1)
+        assert _swept_node_box(box, rp0, rp1, abs0, abs1, d) == expected
+        moving = _moving_node_box(box, rp0, rp1, abs0, abs1)
+        for c in range(3):
+            assert moving[4 * c:4 * c + 2] == world_interval_of(box, rp0, c)
+            assert moving[4 * c + 2:4 * c + 4] == world_interval_of(box, rp1, c)
+            assert moving[12 + c] == max(abs(x) for x in moving[4 * c:4 * c + 4])
 
 
 @pytest.mark.parametrize("seed", range(4))

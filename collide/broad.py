@@ -50,9 +50,12 @@ from .motion import (
     M_THETA,
     box_deviation,
     box_deviation_of,
+    centre_and_half,
     chord_interval,
     motion_tuple,
+    placed_interval,
     pose_tuple,
+    rotation_magnitudes,
     sphere_deviation,
 )
 from .rows import COUNT_LEAF_PAIRS, COUNT_NODE_PAIRS
@@ -454,13 +457,12 @@ _HELD_B = 2.0
 def _swept_node_box(box, rp0, rp1, abs0, abs1, d):
     """World box (lo x, y, z, hi x, y, z) holding a node's box (node_box 6-tuple) over the
     step: its chord box (motion.chord_interval_of between pose tuples rp0 and rp1, whose
-    rotations' absolute values are the 9-tuples abs0, abs1: _rotation_magnitudes)
+    rotations' absolute values are the 9-tuples abs0, abs1: motion.rotation_magnitudes)
     widened by d (its deviation bound and the rounding margin); the boxes of
     _swept_boxes_overlap. The same arithmetic as chord_interval_of, with the box's
     centre and half extents and the |R| computed once per box, not once per axis and
     pose. Tuples only (no reference counting per node)."""
-    c = (0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5]))
-    h = (0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2]))
+    c, h = centre_and_half(box)
     x0, x1 = _chord_interval(c, h, rp0, rp1, abs0, abs1, 0)
     y0, y1 = _chord_interval(c, h, rp0, rp1, abs0, abs1, 1)
     z0, z1 = _chord_interval(c, h, rp0, rp1, abs0, abs1, 2)
@@ -470,27 +472,9 @@ def _swept_node_box(box, rp0, rp1, abs0, abs1, d):
 @njit(cache=True, inline="always")
 def _chord_interval(c, h, rp0, rp1, abs0, abs1, i):
     """motion.chord_interval_of for a box of centre c and half extents h (3-tuples)."""
-    lo0, hi0 = _placed_interval(c, h, rp0, abs0, i)
-    lo1, hi1 = _placed_interval(c, h, rp1, abs1, i)
+    lo0, hi0 = placed_interval(c, h, rp0, abs0, i)
+    lo1, hi1 = placed_interval(c, h, rp1, abs1, i)
     return min(lo0, lo1), max(hi0, hi1)
-
-
-@njit(cache=True, inline="always")
-def _placed_interval(c, h, rp, abs_r, i):
-    """motion.world_interval_of for a box of centre c and half extents h (3-tuples)."""
-    centre = rp[4 * i + 3]
-    extent = 0.0
-    for j in range(3):
-        centre += rp[4 * i + j] * c[j]
-        extent += abs_r[3 * i + j] * h[j]
-    return centre - extent, centre + extent
-
-
-@njit_borrowing
-def _rotation_magnitudes(rp):
-    """|R| of a pose tuple rp = [R | t] (12-tuple): a 9-tuple, row by row."""
-    return (abs(rp[0]), abs(rp[1]), abs(rp[2]), abs(rp[4]), abs(rp[5]), abs(rp[6]), abs(rp[8]), abs(rp[9]),
-            abs(rp[10]))
 
 
 @njit_borrowing
@@ -546,8 +530,8 @@ def swept_leaves(lo, hi, first, count, pose, motion, rigid, margin, stack, top, 
         dev_a, dev_b = descent_deviations(lo, hi, pose, motion, stack, top)
     margin_a = margin + dev_a
     margin_b = margin + dev_b
-    abs_a0, abs_a1 = _rotation_magnitudes(rp_a0), _rotation_magnitudes(rp_a1)
-    abs_b0, abs_b1 = _rotation_magnitudes(rp_b0), _rotation_magnitudes(rp_b1)
+    abs_a0, abs_a1 = rotation_magnitudes(rp_a0), rotation_magnitudes(rp_a1)
+    abs_b0, abs_b1 = rotation_magnitudes(rp_b0), rotation_magnitudes(rp_b1)
     k = np.int64(0)
     while top > 0:
         if stack.shape[0] < top + DESCENT_BATCH + 1:  # rebound only when they grow (see DESCENT_BATCH)
@@ -614,8 +598,8 @@ def leaf_pair_windows(lo, hi, rp0_a, rp1_a, rp0_b, rp1_b, motion_a, motion_b, di
     windows = np.empty((n_leaves, 2))
     # poses as tuples, and their |R|, once per call, not once per leaf pair
     p0_a, p1_a, p0_b, p1_b = pose_tuple(rp0_a), pose_tuple(rp1_a), pose_tuple(rp0_b), pose_tuple(rp1_b)
-    abs0_a, abs1_a = _rotation_magnitudes(p0_a), _rotation_magnitudes(p1_a)
-    abs0_b, abs1_b = _rotation_magnitudes(p0_b), _rotation_magnitudes(p1_b)
+    abs0_a, abs1_a = rotation_magnitudes(p0_a), rotation_magnitudes(p1_a)
+    abs0_b, abs1_b = rotation_magnitudes(p0_b), rotation_magnitudes(p1_b)
     m_a, m_b = motion_tuple(motion_a), motion_tuple(motion_b)
     for k in range(n_leaves):
         leaf_a = node_box(lo, hi, leaves[k, 0])
@@ -638,18 +622,17 @@ _NESTED_ULPS = 64.0 * 2.0 ** -52
 @njit_borrowing
 def _moving_node_box(box, rp0, rp1, abs0, abs1):
     """A node's box (node_box 6-tuple) placed by pose tuples rp0 and rp1 (whose |R| are
-    abs0 and abs1: _rotation_magnitudes) at both ends of the step, in windows.moving_box's
+    abs0 and abs1: motion.rotation_magnitudes) at both ends of the step, in windows.moving_box's
     layout (15-tuple: for axis c, lo and hi at the start, lo and hi at the end, at 4 c to
     4 c + 3; the largest |coordinate| at 12 + c). The arithmetic of
     motion.world_interval_of, with the box's centre and half extents computed once."""
-    c = (0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5]))
-    h = (0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2]))
-    x0, x1 = _placed_interval(c, h, rp0, abs0, 0)
-    x2, x3 = _placed_interval(c, h, rp1, abs1, 0)
-    y0, y1 = _placed_interval(c, h, rp0, abs0, 1)
-    y2, y3 = _placed_interval(c, h, rp1, abs1, 1)
-    z0, z1 = _placed_interval(c, h, rp0, abs0, 2)
-    z2, z3 = _placed_interval(c, h, rp1, abs1, 2)
+    c, h = centre_and_half(box)
+    x0, x1 = placed_interval(c, h, rp0, abs0, 0)
+    x2, x3 = placed_interval(c, h, rp1, abs1, 0)
+    y0, y1 = placed_interval(c, h, rp0, abs0, 1)
+    y2, y3 = placed_interval(c, h, rp1, abs1, 1)
+    z0, z1 = placed_interval(c, h, rp0, abs0, 2)
+    z2, z3 = placed_interval(c, h, rp1, abs1, 2)
     return (x0, x1, x2, x3, y0, y1, y2, y3, z0, z1, z2, z3, max(abs(x0), abs(x1), abs(x2), abs(x3)),
             max(abs(y0), abs(y1), abs(y2), abs(y3)), max(abs(z0), abs(z1), abs(z2), abs(z3)))
 

@@ -444,12 +444,35 @@ def world_interval(lo, hi, rp, i):
 @njit_borrowing
 def world_interval_of(box, rp, i):
     """world_interval of a box 6-tuple under a pose_tuple rp."""
+    centre, half = centre_and_half(box)
+    return placed_interval(centre, half, rp, rotation_magnitudes(rp), i)
+
+
+@njit(cache=True, inline="always")
+def centre_and_half(box):
+    """Centre and half extents (3-tuples) of a box 6-tuple (lo x, y, z, hi x, y, z)."""
+    return ((0.5 * (box[0] + box[3]), 0.5 * (box[1] + box[4]), 0.5 * (box[2] + box[5])),
+            (0.5 * (box[3] - box[0]), 0.5 * (box[4] - box[1]), 0.5 * (box[5] - box[2])))
+
+
+@njit(cache=True, inline="always")
+def placed_interval(centre, half, rp, abs_r, i):
+    """World coordinate i's range of a box of centre and half extents (3-tuples, body
+    frame) placed by pose tuple rp, whose |R| is abs_r (rotation_magnitudes): callers
+    placing many boxes by one pose compute abs_r once."""
     c = rp[4 * i + 3]
     e = 0.0
     for j in range(3):
-        c += rp[4 * i + j] * (0.5 * (box[j] + box[3 + j]))
-        e += abs(rp[4 * i + j]) * (0.5 * (box[3 + j] - box[j]))
+        c += rp[4 * i + j] * centre[j]
+        e += abs_r[3 * i + j] * half[j]
     return c - e, c + e
+
+
+@njit_borrowing
+def rotation_magnitudes(rp):
+    """|R| of a pose tuple rp = [R | t] (12-tuple): a 9-tuple, row by row."""
+    return (abs(rp[0]), abs(rp[1]), abs(rp[2]), abs(rp[4]), abs(rp[5]), abs(rp[6]), abs(rp[8]), abs(rp[9]),
+            abs(rp[10]))
 
 
 @njit_borrowing

@@ -313,48 +313,6 @@ def pending_pop(pending):
 
 
 @njit(cache=True)
-def lazy_order(keys):
-    """The indices 0..n-1 of keys (n,) as a binary heap by (key, index): the order of
-    stable_order(keys), handed out one at a time by order_pop, so that a search that
-    stops after a few needs no full sort (heap building is linear). Returns int64 (n,)."""
-    n = keys.shape[0]
-    heap = np.arange(n)
-    for i in range(n // 2 - 1, -1, -1):
-        _sift_down(heap, n, keys, i)
-    return heap
-
-
-@njit_borrowing
-def order_pop(heap, n, keys):
-    """The next index of lazy_order's heap, whose first n entries are still in use (n >
-    0): removes it, so that the heap's first n - 1 entries are left in use."""
-    first = heap[0]
-    heap[0] = heap[n - 1]
-    _sift_down(heap, n - 1, keys, 0)
-    return first
-
-
-@njit_borrowing
-def _sift_down(heap, n, keys, i):
-    """Move heap[i] down among heap[:n] until neither child comes before it."""
-    while True:
-        first = i
-        for child in (2 * i + 1, 2 * i + 2):
-            if child < n and _index_before(keys, heap[child], heap[first]):
-                first = child
-        if first == i:
-            return
-        heap[i], heap[first] = heap[first], heap[i]
-        i = first
-
-
-@njit_borrowing
-def _index_before(keys, a, b):
-    """Index a comes before index b: smaller key, then smaller index (a stable order)."""
-    return keys[a] < keys[b] or (keys[a] == keys[b] and a < b)
-
-
-@njit(cache=True)
 def stable_order(keys):
     """int64 (n,): the stable ascending argsort of keys (n,) (np.argsort kind="mergesort"),
     by insertion for the short arrays of most calls (no merge sort set-up)."""

@@ -103,10 +103,8 @@ from .narrow import (
     candidates_contact_window,
     comes_first,
     intersecting_triangles,
-    lazy_order,
     new_pending,
     new_stamps,
-    order_pop,
     pending_first_key,
     pending_pop,
     pending_push,
@@ -516,8 +514,11 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
             keys[i] = np.inf  # never near: nor are its triangle pairs
         else:
             keys[i] = -windows[i, 1] if backwards else windows[i, 0]
-    order = lazy_order(keys)  # the leaf pairs in stable_order(keys), handed out as they are opened
-    next_leaf = order_pop(order, n_leaves, keys) if n_leaves > 0 else -1
+    # the leaf pairs by (key, index), that is in stable_order(keys), taken one at a time as they
+    # are opened: a heap, since the search usually stops after a few (no full sort)
+    unopened = new_pending()
+    for i in range(n_leaves):
+        unopened = pending_push(unopened, keys[i], np.int64(i), np.int64(0))
     pending = new_pending()
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = ccd_work()
@@ -526,10 +527,9 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     t = -np.inf if backwards else np.inf
     best_a = best_b = -1
     tri_pairs = buffers.tri_pairs
-    opened = 0
     while True:
         bound = -t if backwards else t  # keys beyond it cannot move the contact found
-        leaf_key = keys[next_leaf] if opened < n_leaves else np.inf
+        leaf_key = pending_first_key(unopened) if pending_size(unopened) > 0 else np.inf
         if pending_size(pending) > 0 and pending_first_key(pending) < leaf_key:
             key, tri_a, tri_b = pending_pop(pending)
             if key > bound or (backwards and t == 1.0):
@@ -546,11 +546,9 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
             continue
         if leaf_key > bound or leaf_key == np.inf or (backwards and t == 1.0):
             break  # nothing pending comes before it either
-        one = leaves[next_leaf:next_leaf + 1]
+        _, leaf, _ = pending_pop(unopened)
+        one = leaves[leaf:leaf + 1]
         n_one = np.int64(1)  # not a literal (see above _candidates)
-        opened += 1
-        if opened < n_leaves:
-            next_leaf = order_pop(order, n_leaves - opened, keys)
         place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, n_one, state.stamp0, state.world0, state.stamp1,
                           state.world1)
         tri_pairs, n, tri_windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_one, one, dist_tol,

@@ -448,8 +448,8 @@ def test_swept_node_box_is_the_chord_box_to_the_last_bit():
     once per box) equal the chord box motion.chord_interval_of computes axis by axis and
     pose by pose, widened by d, and the placed boxes of motion.world_interval_of, bit for
     bit: random boxes, turns and scales."""
-    from collide.broad import _moving_node_box, _rotation_magnitudes, _swept_node_box
-    from collide.motion import chord_interval_of, pose_tuple, world_interval_of
+    from collide.broad import _moving_node_box, _swept_node_box
+    from collide.motion import chord_interval_of, pose_tuple, rotation_magnitudes, world_interval_of
     rng = np.random.default_rng(31)
     for k in range(300):
         scale = 10.0 ** rng.integers(-4, 5)
@@ -460,7 +460,7 @@ def test_swept_node_box_is_the_chord_box_to_the_last_bit():
         d = rng.uniform(0, 1e-6) * scale
         expected = [chord_interval_of(box, rp0, rp1, i) for i in range(3)]
         expected = tuple(e[0] - d for e in expected) + tuple(e[1] + d for e in expected)
-        abs0, abs1 = _rotation_magnitudes(rp0), _rotation_magnitudes(rp1)
+        abs0, abs1 = rotation_magnitudes(rp0), rotation_magnitudes(rp1)
         assert _swept_node_box(box, rp0, rp1, abs0, abs1, d) == expected
         moving = _moving_node_box(box, rp0, rp1, abs0, abs1)
         for c in range(3):
@@ -657,16 +657,18 @@ def test_stable_order_is_numpys_stable_argsort():
                 assert np.array_equal(stable_order(keys), np.argsort(keys, kind="stable")), keys
 
 
-def test_lazy_order_hands_out_numpys_stable_argsort():
-    """narrow.lazy_order and order_pop give the indices in numpy's stable order, one at a
-    time, ties (many, with -0.0 == 0.0 and inf) in index order: the order in which the
-    one-sided search opens leaf pairs, whatever the number it opens."""
-    from collide.narrow import lazy_order, order_pop
+def test_leaf_pairs_leave_their_heap_in_numpys_stable_order():
+    """The one-sided search takes its leaf pairs from a narrow.Pending heap keyed (key,
+    index, 0): they come out in numpy's stable order, ties (many, with -0.0 == 0.0 and
+    inf) in index order, whatever the number it takes."""
+    from collide.narrow import new_pending, pending_pop, pending_push
     rng = np.random.default_rng(5)
     for n in [1, 2, 3, 7, 16, 17, 100, 1000]:
         for _ in range(10):
             keys = rng.choice([0.0, -0.0, 0.25, 0.5, 1.0, -1.0, np.inf], size=n)
             keys[rng.random(n) < 0.5] = rng.random()  # some distinct keys too
-            heap = lazy_order(keys)
-            handed = [order_pop(heap, n - i, keys) for i in range(n)]
+            heap = new_pending()
+            for i in range(n):
+                heap = pending_push(heap, keys[i], np.int64(i), np.int64(0))
+            handed = [pending_pop(heap)[1] for i in range(n)]
             assert handed == list(np.argsort(keys, kind="stable")), keys

@@ -79,6 +79,14 @@ LBVH_PARALLEL_MIN = 1 << 16
 #: Default maximum number of triangles per BVH leaf.
 DEFAULT_LEAF_SIZE = 4
 
+#: Meshes of at most this many triangles get an oriented box per BVH leaf (packed.py),
+#: which the swept descent under screw motion uses to drop leaf pairs apart along a leaf's
+#: normal (a nearly flat patch facing another across a gap): 44 % fewer leaf pairs at 1000
+#: bodies. Bigger meshes skip them: 144 bytes per BVH node and about 0.13 s per million
+#: triangles at every scan, for leaf pairs that big, nearly touching patches rarely let
+#: go. Only affects speed and memory. Triangles.
+LEAF_BOX_TRIANGLES = 50_000
+
 #: Number of bins per axis of the binned SAH builder.
 SAH_BINS = 16
 

@@ -155,9 +155,10 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
     top = start_descent(ps, rp0, rp1, motion, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
     if rule == RULE_SWEPT or rule == RULE_SWEPT_RIGID:
-        stack, top, leaves, n = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
-                                             scratch.motion, rule == RULE_SWEPT_RIGID, margin, stack, top, leaves,
-                                             counts)
+        stack, top, leaves, n = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.leaf_box,
+                                             ps.leaf_box_shift[ps.object_mesh[a]],
+                                             ps.leaf_box_shift[ps.object_mesh[b]], scratch.pose, scratch.motion,
+                                             rule == RULE_SWEPT_RIGID, margin, stack, top, leaves, counts)
     else:  # RULE_POSE, passed as the literal _pair_triangles passes: one compiled overlapping_leaves
         stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
                                                    scratch.pose, scratch.motion, RULE_POSE, margin, stack, top,

@@ -6,7 +6,9 @@ vertices ``vertices[vert_start[m]:vert_start[m+1]]``, faces
 from ``root[m]`` on, with ``first`` global (inner nodes: node index; leaves:
 index into ``prim_ids``) and ``prim_ids`` holding mesh-local face indices.
 Per object o: mesh ``object_mesh[o]``; its world vertices are rows
-``world_start[o]:world_start[o+1]`` of a world buffer.
+``world_start[o]:world_start[o+1]`` of a world buffer. Meshes of up to
+config.LEAF_BOX_TRIANGLES triangles also get an oriented box per BVH leaf
+(``leaf_box``, oriented_leaf_boxes), along the normal of the patch it holds.
 """
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -14,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import config
 from .bvh import build_mesh_bvh
 from .jit import njit
 
@@ -34,6 +37,9 @@ class PackedScene(NamedTuple):
     sphere_radius: np.ndarray  #: float64 (M,) max distance of a vertex from ``centre``
     object_mesh: np.ndarray  #: int64 (N,)
     world_start: np.ndarray  #: int64 (N + 1,)
+    leaf_box: np.ndarray     #: float64 (rows, LEAF_BOX_WIDTH) leaves' oriented boxes (oriented_leaf_boxes) of
+    #: the meshes that have them (config.LEAF_BOX_TRIANGLES), node by node
+    leaf_box_shift: np.ndarray  #: int64 (M,) row of leaf_box = node + leaf_box_shift[m]; NO_LEAF_BOXES: none
 
 
 def pack_scene(meshes, object_mesh, split="sah", leaf_size=None, build_bvh=None, workers=1):
@@ -84,8 +90,141 @@ def pack_scene(meshes, object_mesh, split="sah", leaf_size=None, build_bvh=None,
         sphere_radius=np.array([np.linalg.norm(m.vertices - c, axis=1).max() for m, c in zip(meshes, centre)]),
         object_mesh=object_mesh,
         world_start=np.concatenate([[0], np.cumsum(n_verts[object_mesh])]).astype(np.int64),
+        **_leaf_boxes(meshes, bvhs, node_start),
     )
     return packed, build_seconds
+
+
+#: PackedScene.leaf_box_shift of a mesh without leaf boxes
+NO_LEAF_BOXES = np.iinfo(np.int64).min
+
+
+def _leaf_boxes(meshes, bvhs, node_start):
+    """PackedScene's leaf_box and leaf_box_shift: oriented leaf boxes of the meshes of at most
+    config.LEAF_BOX_TRIANGLES triangles."""
+    boxes, shift, rows = [np.zeros((0, LEAF_BOX_WIDTH))], np.full(len(meshes), NO_LEAF_BOXES, np.int64), 0
+    for m, (mesh, b) in enumerate(zip(meshes, bvhs)):
+        if mesh.faces.shape[0] <= config.LEAF_BOX_TRIANGLES:
+            boxes.append(oriented_leaf_boxes(b.first, b.count, b.prim_ids, mesh.faces, mesh.vertices))
+            shift[m] = rows - node_start[m]
+            rows += b.count.shape[0]
+    return {"leaf_box": np.ascontiguousarray(np.concatenate(boxes)), "leaf_box_shift": shift}
+
+
+#: columns of a leaf's oriented box (PackedScene.leaf_box): three orthonormal axes in the
+#: body frame (the first along the leaf's triangles' summed normal), then its centre (body
+#: coordinates), its half extents along the three axes, the range of the box along the
+#: first axis (lo, hi: u . x for x in the box, u the first axis) and the size of the numbers
+#: that range is computed from (for rounding bounds)
+LEAF_BOX_WIDTH = 18
+LEAF_AXES = 0
+LEAF_CENTRE = 9
+LEAF_HALF = 12
+LEAF_NORMAL_LO = 15
+LEAF_NORMAL_HI = 16
+LEAF_SIZE = 17
+
+#: slack added to every half extent of a leaf's oriented box, relative to the largest
+#: |coordinate| of its vertices: far more than the rounding of the projections and of the
+#: axes' orthonormality, so every vertex lies inside the box
+_LEAF_SLACK = 2.0 ** -30
+
+
+@njit(cache=True)
+def oriented_leaf_boxes(first, count, prim_ids, faces, vertices):
+    """float64 (nodes, LEAF_BOX_WIDTH): for each leaf (count > 0) of one mesh's BVH (first,
+    count, prim_ids: mesh-local), a box holding its triangles (faces, vertices: the mesh),
+    oriented along their summed normal (area-weighted; x, y, z when it vanishes) and two
+    tangents: thin for the nearly flat patch a leaf usually is, where its axis-aligned box
+    is as thick as the patch is tilted. Rows of inner nodes are zeros."""
+    out = np.zeros((count.shape[0], LEAF_BOX_WIDTH))
+    for node in range(count.shape[0]):
+        if count[node] > 0:
+            _leaf_box(first[node], count[node], prim_ids, faces, vertices, out, node)
+    return out
+
+
+@njit(cache=True, inline="always")
+def _leaf_box(start, n, prim_ids, faces, vertices, out, node):
+    """Row ``node`` of oriented_leaf_boxes, for the triangles prim_ids[start:start + n]."""
+    nx = ny = nz = 0.0
+    for j in range(start, start + n):
+        f = prim_ids[j]
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        u0, u1, u2 = vertices[b, 0] - vertices[a, 0], vertices[b, 1] - vertices[a, 1], vertices[b, 2] - vertices[a, 2]
+        v0, v1, v2 = vertices[c, 0] - vertices[a, 0], vertices[c, 1] - vertices[a, 1], vertices[c, 2] - vertices[a, 2]
+        nx += u1 * v2 - u2 * v1
+        ny += u2 * v0 - u0 * v2
+        nz += u0 * v1 - u1 * v0
+    axes = _leaf_axes(nx, ny, nz)
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
+    largest = 0.0
+    for j in range(start, start + n):
+        for corner in range(3):
+            v = faces[prim_ids[j], corner]
+            x, y, z = vertices[v, 0], vertices[v, 1], vertices[v, 2]
+            d0 = axes[0] * x + axes[1] * y + axes[2] * z
+            d1 = axes[3] * x + axes[4] * y + axes[5] * z
+            d2 = axes[6] * x + axes[7] * y + axes[8] * z
+            lo0, hi0 = min(lo0, d0), max(hi0, d0)
+            lo1, hi1 = min(lo1, d1), max(hi1, d1)
+            lo2, hi2 = min(lo2, d2), max(hi2, d2)
+            largest = max(largest, abs(x), abs(y), abs(z))
+    mids = (0.5 * (lo0 + hi0), 0.5 * (lo1 + hi1), 0.5 * (lo2 + hi2))
+    halves = (0.5 * (hi0 - lo0), 0.5 * (hi1 - lo1), 0.5 * (hi2 - lo2))
+    for i in range(3):
+        out[node, LEAF_HALF + i] = halves[i] + _LEAF_SLACK * largest
+        for k in range(3):
+            out[node, LEAF_AXES + 3 * i + k] = axes[3 * i + k]
+    for k in range(3):
+        out[node, LEAF_CENTRE + k] = mids[0] * axes[k] + mids[1] * axes[3 + k] + mids[2] * axes[6 + k]
+    lo, hi, size = extent_along(out, node, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
+                                axes[0], axes[1], axes[2])
+    out[node, LEAF_NORMAL_LO] = lo
+    out[node, LEAF_NORMAL_HI] = hi
+    out[node, LEAF_SIZE] = size
+
+
+@njit(cache=True, inline="always")
+def extent_along(leaf_box, node, r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, u0, u1, u2):
+    """The range of u . x over the oriented box of leaf ``node`` (rows of leaf_box) placed
+    by [R | t] (entries r00 ... r22, t0, t1, t2), u a unit vector of the frame it is placed
+    in: (lo, hi, the size of the numbers they are computed from, for rounding bounds)."""
+    v0 = r00 * u0 + r10 * u1 + r20 * u2  # v = R^T u: u . (R x + t) = v . x + u . t
+    v1 = r01 * u0 + r11 * u1 + r21 * u2
+    v2 = r02 * u0 + r12 * u1 + r22 * u2
+    c0, c1, c2 = leaf_box[node, LEAF_CENTRE], leaf_box[node, LEAF_CENTRE + 1], leaf_box[node, LEAF_CENTRE + 2]
+    centre = (t0 * u0 + t1 * u1 + t2 * u2) + (v0 * c0 + v1 * c1 + v2 * c2)
+    extent = 0.0
+    for i in range(3):
+        a = LEAF_AXES + 3 * i
+        extent += leaf_box[node, LEAF_HALF + i] * abs(v0 * leaf_box[node, a] + v1 * leaf_box[node, a + 1]
+                                                      + v2 * leaf_box[node, a + 2])
+    size = abs(t0) + abs(t1) + abs(t2) + abs(c0) + abs(c1) + abs(c2) + extent
+    return centre - extent, centre + extent, size
+
+
+@njit(cache=True, inline="always")
+def _leaf_axes(nx, ny, nz):
+    """Three orthonormal axes (a 9-tuple, axis by axis), the first along (nx, ny, nz); x, y
+    and z when it is zero."""
+    length = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if not length > 0.0:  # a leaf of degenerate triangles only
+        return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+    nx, ny, nz = nx / length, ny / length, nz / length
+    # the first tangent: across the normal and the coordinate axis least along it
+    if abs(nx) <= abs(ny) and abs(nx) <= abs(nz):
+        tx, ty, tz = 0.0, nz, -ny
+    elif abs(ny) <= abs(nz):
+        tx, ty, tz = -nz, 0.0, nx
+    else:
+        tx, ty, tz = ny, -nx, 0.0
+    t = np.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / t, ty / t, tz / t
+    sx, sy, sz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    s = np.sqrt(sx * sx + sy * sy + sz * sz)
+    return (nx, ny, nz, tx, ty, tz, sx / s, sy / s, sz / s)
 
 
 @njit(cache=True)

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import identity_quaternions, write_box, write_trajectory
+from conftest import identity_quaternions, rotation_about, write_box, write_trajectory
 
 import collide
 from collide import config
@@ -214,8 +214,9 @@ def test_contact_ending_or_beginning_over_a_large_patch_is_searched_in_time_orde
     when a contact over hundreds of leaf pairs ends (begins). Those searches open the leaf
     pairs in the order they can meet and stop at the contact (config.ONE_SIDED_LEAVES):
     the same contacts, bit for bit, as the same scan trying every candidate at once (the
-    threshold raised above any search), with under a third of the triangle pairs tested
-    and the same certified searches; the same again with two workers and through the
+    threshold raised above any search), with under half the triangle pairs tested (the
+    swept descent's check of leaf normals already spares the reference most of the pairs
+    apart) and the same certified searches; the same again with two workers and through the
     --triangle-pairs path (frame contacts from the discrete scan)."""
     meshes, traj = _chattering_plates(tmp_path, 7, 0.5 if interpolation == "screw" else 0.0)
     ordered = collide.scan(meshes, traj, mode="continuous", interpolation=interpolation, workers=1)
@@ -227,7 +228,7 @@ def test_contact_ending_or_beginning_over_a_large_patch_is_searched_in_time_orde
     assert (c["t_begin"][1:] < 0.01 * np.array([2, 4, 6])).all()  # begins inside the steps, not at frames
     assert (c["t_end"][:3] > 0.01 * np.array([0, 2, 4])).all()
     work, reference_work = ordered.stats["work"], at_once.stats["work"]
-    assert work["triangle_pairs"] < reference_work["triangle_pairs"] / 3
+    assert work["triangle_pairs"] < reference_work["triangle_pairs"] / 2
     assert work["ccd_pairs"] == reference_work["ccd_pairs"] and work["ccd_queries"] == reference_work["ccd_queries"]
     for other in (at_once,
                   collide.scan(meshes, traj, mode="continuous", interpolation=interpolation, workers=2),
@@ -509,8 +510,9 @@ def test_swept_descent_reuses_node_boxes_without_changing_what_it_finds(seed):
                                                   scratch.motion, RULE_SWEPT, 1e-9, stack, top, out,
                                                   np.iinfo(np.int64).max, counts, scratch.toward, False)
             else:
-                _, _, out, k = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
-                                            scratch.motion, False, 1e-9, stack, top, out, counts)
+                _, _, out, k = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.leaf_box,
+                                            *ps.leaf_box_shift, scratch.pose, scratch.motion, False, 1e-9, stack, top,
+                                            out, counts)
             found.append((out[:k].copy(), counts.copy()))
         (plain, plain_counts), (held, held_counts) = found
         assert plain.shape[0] > 10 and plain_counts[COUNT_NODE_PAIRS] > 100
@@ -527,19 +529,21 @@ _STEP_MOTIONS = [((0.6, 0.02), (1.2, 0.1)), ((0.8, 0.0), (0.0, 0.01)), ((0.0, 0.
 @pytest.mark.parametrize("seed", range(10))
 def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screws(seed):
     """broad.RULE_SWEPT_RIGID (each node's box placed in the other object's frame at both
-    ends of the step, widened by rigid_frame_deviation) against sampling: at 81 moments
-    of the step, both objects placed by their screw motions (motion.pose_at), every
-    leaf pair whose oriented boxes overlap there (the frame test's RULE_POSE descent)
-    is among the rigid descent's leaf pairs. FCL's robot and environment, turning
-    (up to 1.2 radians) and sliding, both, one or neither of them (_STEP_MOTIONS); the
-    robot starts inside the environment."""
-    from conftest import DATA
+    ends of the step, widened by rigid_frame_deviation; leaf pairs also checked along
+    their normals) against sampling: at 81 moments of the step, both objects placed by
+    their screw motions (motion.pose_at), every leaf pair with two triangles that meet
+    there (exact predicate, brute force over the leaf pairs whose boxes overlap there:
+    the frame test's RULE_POSE descent) is among the rigid descent's leaf pairs, and
+    every leaf pair whose boxes overlap there among RULE_SWEPT's. FCL's robot and
+    environment, turning (up to 1.2 radians) and sliding, both, one or neither of them
+    (_STEP_MOTIONS); the robot starts inside the environment."""
+    from conftest import DATA, meshes_touch
 
     from collide.broad import RULE_POSE, RULE_SWEPT, RULE_SWEPT_RIGID
     from collide.discrete import object_margins, pair_leaves, pair_scratch
     from collide.load import load_mesh
     from collide.motion import INTERPOLATIONS, MOTION_WIDTH, pose_at, step_motions
-    from collide.packed import pack_scene
+    from collide.packed import pack_scene, world_vertices
     from collide.rows import COUNT_WIDTH
 
     rng = np.random.default_rng(100 + seed)
@@ -570,13 +574,21 @@ def test_rigid_swept_descent_keeps_every_leaf_pair_that_overlaps_along_the_screw
     rigid = leaf_pairs(poses[0], poses[1], motion, RULE_SWEPT_RIGID)
     world = leaf_pairs(poses[0], poses[1], motion, RULE_SWEPT)
     sampled = set()
+    def leaf_faces(o, leaf):  # object o has mesh o
+        return ps.faces[ps.face_start[o] + ps.prim_ids[ps.node_first[leaf]:ps.node_first[leaf] + ps.node_count[leaf]]]
+
     at = np.empty((2, 3, 4))
+    touching = set()
     for t in np.linspace(0.0, 1.0, 81):
         for o in range(2):
             pose_at(motion[o], poses[0, o], poses[1, o], t, at[o])
-        sampled |= leaf_pairs(at, at, still, RULE_POSE)
-    assert len(sampled) > 20
-    assert sampled <= rigid, sorted(sampled - rigid)[:5]
+        overlapping = leaf_pairs(at, at, still, RULE_POSE)
+        sampled |= overlapping
+        placed = [world_vertices(ps.vertices[ps.vert_start[o]:ps.vert_start[o + 1]], at[o]) for o in range(2)]
+        touching |= {(la, lb) for la, lb in overlapping - touching
+                     if meshes_touch(placed[0], leaf_faces(0, la), placed[1], leaf_faces(1, lb))}
+    assert len(sampled) > 20 and touching  # the checks below are not empty
+    assert touching <= rigid, sorted(touching - rigid)[:5]
     assert sampled <= world
 
 
@@ -672,3 +684,144 @@ def test_leaf_pairs_leave_their_heap_in_numpys_stable_order():
                 heap = pending_push(heap, keys[i], np.int64(i), np.int64(0))
             handed = [pending_pop(heap)[1] for i in range(n)]
             assert handed == list(np.argsort(keys, kind="stable")), keys
+
+
+def test_leaf_boxes_hold_their_triangles():
+    """packed.oriented_leaf_boxes: orthonormal axes, the first along the leaf's summed
+    normal, every corner of every triangle of the leaf inside the box and its range along
+    the normal, that range tight (FCL's robot
+    and environment, a sphere with degenerate triangles added: zero-area leaves get x, y
+    and z)."""
+    import trimesh
+    from conftest import DATA
+
+    from collide.load import load_mesh
+    from collide.packed import LEAF_AXES, LEAF_CENTRE, LEAF_HALF, LEAF_NORMAL_HI, LEAF_NORMAL_LO, pack_scene
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=3.0)
+    vertices = np.vstack([sphere.vertices, [[5.0, 5.0, 5.0], [5.0, 5.0, 5.0], [6.0, 6.0, 6.0]]])
+    faces = np.vstack([sphere.faces, [[len(vertices) - 3, len(vertices) - 2, len(vertices) - 1]] * 5])
+    meshes = [load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj"), trimesh.Trimesh(vertices, faces, process=False)]
+    ps, _ = pack_scene(meshes, np.arange(3))
+    checked = 0
+    for m in range(3):
+        nodes = range(ps.root[m], ps.root[m + 1] if m + 1 < 3 else ps.node_count.shape[0])
+        for node in nodes:
+            if ps.node_count[node] == 0:
+                continue
+            box = ps.leaf_box[node + ps.leaf_box_shift[m]]
+            axes = box[LEAF_AXES:LEAF_AXES + 9].reshape(3, 3)
+            np.testing.assert_allclose(axes @ axes.T, np.eye(3), atol=1e-12)
+            tris = ps.prim_ids[ps.node_first[node]:ps.node_first[node] + ps.node_count[node]]
+            corners = ps.vertices[ps.vert_start[m] + ps.faces[ps.face_start[m] + tris]]
+            normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).sum(axis=0)
+            if np.linalg.norm(normal) > 0:
+                assert np.dot(normal, axes[0]) > 0.999999 * np.linalg.norm(normal)
+            offsets = (corners.reshape(-1, 3) - box[LEAF_CENTRE:LEAF_CENTRE + 3]) @ axes.T
+            assert (np.abs(offsets) <= box[LEAF_HALF:LEAF_HALF + 3]).all(), node
+            along = corners.reshape(-1, 3) @ axes[0]
+            assert box[LEAF_NORMAL_LO] <= along.min() and along.max() <= box[LEAF_NORMAL_HI], node
+            assert box[LEAF_NORMAL_HI] - box[LEAF_NORMAL_LO] <= np.ptp(along) + 1e-6 * (1 + np.abs(along).max())
+            checked += 1
+    assert checked > 1000
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_leaf_pairs_apart_along_their_normals_stay_apart(seed):
+    """The rigid swept descent drops a leaf pair that its oriented boxes keep apart along
+    either leaf's normal over the whole step (broad.leaves_apart_along_normals): FCL's
+    robot turning and sliding near its environment. Every leaf pair it drops, and only
+    those, would be kept without the leaf boxes; and each dropped pair is apart at 33
+    moments of the step by python-fcl's exact distance between its triangles, placed by
+    the screw motion itself (motion.pose_at). Many are dropped."""
+    fcl = pytest.importorskip("fcl")
+    from conftest import DATA
+
+    from collide.broad import swept_leaves
+    from collide.discrete import object_margins, pair_scratch, start_descent
+    from collide.load import load_mesh
+    from collide.motion import INTERPOLATIONS, MOTION_WIDTH, pose_at, step_motions
+    from collide.packed import NO_LEAF_BOXES, pack_scene
+    from collide.rows import COUNT_WIDTH
+
+    rng = np.random.default_rng(seed)
+    env, rob = load_mesh(DATA / "env.obj"), load_mesh(DATA / "rob.obj")
+    ps, _ = pack_scene([env, rob], np.array([0, 1]))
+    centre = env.vertices.mean(axis=0)
+    spread = 0.25 * np.ptp(env.vertices, axis=0)
+    dropped_total = kept_total = 0
+    for _ in range(6):
+        poses = np.array([[_random_pose(rng, 0.0, 0.0, 0.2), _random_pose(rng, centre, spread, np.pi)]
+                          for _ in range(2)])
+        poses[1, 1] = _random_pose(rng, poses[0, 1, :, 3], 0.02 * spread, 0.1)
+        poses[1, 0] = _random_pose(rng, poses[0, 0, :, 3], 0.005 * spread, 0.02)
+        margin = np.empty(2)
+        motion = np.empty((2, MOTION_WIDTH))
+        object_margins(ps, poses[0], poses[1], margin)
+        step_motions(INTERPOLATIONS["screw"], poses[0], poses[1], margin, motion)
+        found = []
+        for shifts in (ps.leaf_box_shift, (NO_LEAF_BOXES, NO_LEAF_BOXES)):
+            scratch, stack = pair_scratch(), np.empty((4, 2), np.int64)
+            top = start_descent(ps, poses[0], poses[1], motion, 0, 1, scratch, stack)
+            out = np.empty((4, 2), np.int64)
+            _, _, out, k = swept_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.leaf_box, *shifts,
+                                        scratch.pose, scratch.motion, True, margin[0] + margin[1] + 1e-9, stack, top,
+                                        out, np.zeros(COUNT_WIDTH, np.int64))
+            found.append({tuple(row) for row in out[:k]})
+        kept, without = found
+        assert kept <= without
+        dropped = sorted(without - kept)
+        dropped_total += len(dropped)
+        kept_total += len(kept)
+        for la, lb in dropped[:40]:
+            models = []
+            for o, leaf in ((0, la), (1, lb)):
+                m = o  # object o has mesh o
+                tris = ps.prim_ids[ps.node_first[leaf]:ps.node_first[leaf] + ps.node_count[leaf]]
+                faces = ps.faces[ps.face_start[m] + tris]
+                models.append((ps.vertices[ps.vert_start[m]:ps.vert_start[m + 1]], faces))
+            for t in np.linspace(0.0, 1.0, 33):
+                objects = []
+                for o, (vertices, faces) in enumerate(models):
+                    pose = np.empty((3, 4))
+                    pose_at(motion[o], poses[0, o], poses[1, o], t, pose)
+                    model = fcl.BVHModel()
+                    model.beginModel(len(vertices), len(faces))
+                    model.addSubModel(vertices @ pose[:, :3].T + pose[:, 3], faces)
+                    model.endModel()
+                    objects.append(fcl.CollisionObject(model, fcl.Transform()))
+                distance = fcl.distance(objects[0], objects[1], fcl.DistanceRequest(), fcl.DistanceResult())
+                assert distance > 0.0, (la, lb, t)
+    assert dropped_total > max(1000, 0.02 * (dropped_total + kept_total)), (dropped_total, kept_total)
+
+
+@pytest.mark.parametrize("interpolation", ["screw", "linear-vertex"])
+def test_leaf_boxes_change_no_contact(tmp_path, monkeypatch, interpolation):
+    """The same contacts, bit for bit, with the leaf boxes' normal checks in the swept
+    descent and without them (config.LEAF_BOX_TRIANGLES = 0: no mesh gets leaf boxes):
+    the lid pressed into the wavy plate and lifted (contacts beginning and ending over a
+    large patch) and FCL's robot passing through its environment; under screw motion
+    the checks drop leaf pairs (linear-vertex motion does not use them)."""
+    from conftest import DATA
+    meshes, traj = _chattering_plates(tmp_path, 5, 0.5 if interpolation == "screw" else 0.0)
+    robot = tmp_path / "robot"
+    robot.mkdir()
+    for name in ("env.obj", "rob.obj"):
+        (robot / name).write_bytes((DATA / name).read_bytes())
+    rng = np.random.default_rng(3)
+    n = 6
+    matrix = np.tile(np.eye(4), (n, 1, 1, 1))
+    for k in range(n):
+        matrix[k, 0, :3, :3] = rotation_about([0.0, 0.0, 1.0], 0.05 * k)
+        matrix[k, 0, :3, 3] = [-200.0 + 80.0 * k, 100.0, 0.0] + rng.normal(scale=5.0, size=3)
+    robot_traj = write_trajectory(tmp_path / "robot.h5", 0.1 * np.arange(n), ["rob"], matrix=matrix)
+    leaf_pairs = np.zeros(2, np.int64)
+    for folder, trajectory in ((meshes, traj), (robot, robot_traj)):
+        with_boxes = collide.scan(folder, trajectory, mode="continuous", interpolation=interpolation)
+        with monkeypatch.context() as patch:
+            patch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
+            without = collide.scan(folder, trajectory, mode="continuous", interpolation=interpolation)
+        assert with_boxes.contacts["t_begin"].size > 0
+        for name, column in without.contacts.items():
+            np.testing.assert_array_equal(with_boxes.contacts[name], column, err_msg=name)
+        leaf_pairs += [with_boxes.stats["work"]["leaf_pairs"], without.stats["work"]["leaf_pairs"]]
+    assert (leaf_pairs[0] < leaf_pairs[1]) == (interpolation == "screw"), leaf_pairs

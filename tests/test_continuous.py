@@ -773,20 +773,18 @@ def test_leaf_pairs_apart_along_their_normals_stay_apart(seed):
         dropped_total += len(dropped)
         kept_total += len(kept)
         for la, lb in dropped[:40]:
-            models = []
+            corners = []  # each leaf's triangles' corners, (3 n, 3), body frame (object o has mesh o)
             for o, leaf in ((0, la), (1, lb)):
-                m = o  # object o has mesh o
                 tris = ps.prim_ids[ps.node_first[leaf]:ps.node_first[leaf] + ps.node_count[leaf]]
-                faces = ps.faces[ps.face_start[m] + tris]
-                models.append((ps.vertices[ps.vert_start[m]:ps.vert_start[m + 1]], faces))
+                corners.append(ps.vertices[ps.vert_start[o] + ps.faces[ps.face_start[o] + tris]].reshape(-1, 3))
             for t in np.linspace(0.0, 1.0, 33):
                 objects = []
-                for o, (vertices, faces) in enumerate(models):
+                for o, body in enumerate(corners):
                     pose = np.empty((3, 4))
                     pose_at(motion[o], poses[0, o], poses[1, o], t, pose)
                     model = fcl.BVHModel()
-                    model.beginModel(len(vertices), len(faces))
-                    model.addSubModel(vertices @ pose[:, :3].T + pose[:, 3], faces)
+                    model.beginModel(len(body), len(body) // 3)
+                    model.addSubModel(body @ pose[:, :3].T + pose[:, 3], np.arange(len(body)).reshape(-1, 3))
                     model.endModel()
                     objects.append(fcl.CollisionObject(model, fcl.Transform()))
                 distance = fcl.distance(objects[0], objects[1], fcl.DistanceRequest(), fcl.DistanceResult())

@@ -11,7 +11,8 @@ Two levels:
 
    - ``RULE_POSE``: the objects at one pose. B's node boxes become oriented
      boxes in A's body frame, tested against A's axis-aligned node boxes with
-     the separating-axis theorem (15 axes).
+     the separating-axis theorem (15 axes); a leaf pair also along both leaves'
+     normals (leaves_apart_along_normals), as under RULE_SWEPT_RIGID below.
    - ``RULE_SWEPT``: the objects moving from pose 0 to pose 1 over one step.
      Each point's chord (straight path between its two end positions) stays
      inside the union of its world boxes at both ends, and its real path
@@ -336,8 +337,8 @@ def opens_a(leaf_a, leaf_b, box_a, box_b):
 
 
 @njit(cache=True)
-def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, top, out, max_out, counts, toward,
-                       guided):
+def overlapping_leaves(lo, hi, first, count, leaf_box, box_shift_a, box_shift_b, pose, motion, rule, margin, stack,
+                       top, out, max_out, counts, toward, guided):
     """Leaf pairs of two BVHs whose boxes overlap under ``rule``, found by a tandem
     descent that can stop and resume.
 
@@ -350,6 +351,9 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     that needs only some can test them and resume with the returned stack. Buffers
     grow when full. counts: int64 rows.COUNT_* counters. Returns (stack, top, out, k),
     rows out[:k]. Node pairs are visited in a fixed order: results are deterministic.
+    Under RULE_POSE a leaf pair is also checked along both leaves' normals
+    (leaves_apart_along_normals at one pose), when both meshes have leaf boxes (leaf_box,
+    rows node + box_shift_a (A's nodes) or box_shift_b; packed.NO_LEAF_BOXES: none).
 
     toward: float64 (2, 3) a point in A's and one in B's body frame, read when ``guided``.
     Of the two children of an opened node, the one whose box lies nearer its tree's point
@@ -359,6 +363,8 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
     """
     rel = relative_pose(pose[0], pose[2])
     abs_r = abs_rotation(rel)
+    rel_ab = relative_pose(pose[2], pose[0])  # A's nodes in B's frame
+    boxes = rule == RULE_POSE and box_shift_a != NO_LEAF_BOXES and box_shift_b != NO_LEAF_BOXES
     margin_a = margin_b = margin
     if rule == RULE_SWEPT:
         dev_a, dev_b = descent_deviations(lo, hi, pose, motion, stack, top)
@@ -387,7 +393,9 @@ def overlapping_leaves(lo, hi, first, count, pose, motion, rule, margin, stack, 
             leaf_a = count[na] > 0
             leaf_b = count[nb] > 0
             if leaf_a and leaf_b:
-                k = _put_pair(out, k, na, nb)
+                if not (boxes and leaves_apart_along_normals(leaf_box, na + box_shift_a, nb + box_shift_b, rel_ab,
+                                                             rel_ab, rel, rel, margin, margin)):
+                    k = _put_pair(out, k, na, nb)
                 continue
             open_a = opens_a(leaf_a, leaf_b, box_a, box_b)
             _open(first, na, nb, open_a, stack, top)

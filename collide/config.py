@@ -80,11 +80,12 @@ LBVH_PARALLEL_MIN = 1 << 16
 DEFAULT_LEAF_SIZE = 4
 
 #: Meshes of at most this many triangles get an oriented box per BVH leaf (packed.py),
-#: which the swept descent under screw motion uses to drop leaf pairs apart along a leaf's
-#: normal (a nearly flat patch facing another across a gap): 44 % fewer leaf pairs at 1000
-#: bodies. Bigger meshes skip them: 144 bytes per BVH node and about 0.13 s per million
-#: triangles at every scan, for leaf pairs that big, nearly touching patches rarely let
-#: go. Only affects speed and memory. Triangles.
+#: which the frame tests, and the swept descent under screw motion, use to drop leaf pairs
+#: apart along a leaf's normal (a nearly flat patch facing another across a gap): 44 %
+#: fewer leaf pairs in the swept descents at 1000 bodies. Bigger meshes skip them: 144
+#: bytes per BVH node and about 0.13 s per million triangles at every scan, for leaf pairs
+#: that big, nearly touching patches rarely let go. Only affects speed and memory.
+#: Triangles.
 LEAF_BOX_TRIANGLES = 50_000
 
 #: Number of bins per axis of the binned SAH builder.

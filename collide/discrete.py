@@ -160,8 +160,10 @@ def pair_leaves(ps, rp0, rp1, motion, a, b, rule, margin, scratch, stack, leaves
                                              ps.leaf_box_shift[ps.object_mesh[b]], scratch.pose, scratch.motion,
                                              rule == RULE_SWEPT_RIGID, margin, stack, top, leaves, counts)
     else:  # RULE_POSE, passed as the literal _pair_triangles passes: one compiled overlapping_leaves
-        stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count,
-                                                   scratch.pose, scratch.motion, RULE_POSE, margin, stack, top,
+        stack, top, leaves, n = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.leaf_box,
+                                                   ps.leaf_box_shift[ps.object_mesh[a]],
+                                                   ps.leaf_box_shift[ps.object_mesh[b]], scratch.pose,
+                                                   scratch.motion, RULE_POSE, margin, stack, top,
                                                    leaves, np.iinfo(np.int64).max, counts, scratch.toward,
                                                    np.bool_(False))
     return stack, leaves, n
@@ -215,12 +217,14 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
         _centroid(ps, b, near_b, scratch.toward[1])
     lo, hi, first, count, prim_ids = ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.prim_ids
     pose, motion, toward, p, q = scratch.pose, scratch.motion, scratch.toward, scratch.p, scratch.q
+    shift_a, shift_b = ps.leaf_box_shift[ps.object_mesh[a]], ps.leaf_box_shift[ps.object_mesh[b]]
     obj_a = _placed(ps, rp, a, f, static, stamp, world)
     obj_b = _placed(ps, rp, b, f, static, stamp, world)
     n_tri = np.int64(0)
     while top > 0 and not (first_only and n_tri > 0):
-        stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, pose, motion, RULE_POSE, margin,
-                                                          stack, top, leaves, batch, counts, toward, near_a >= 0)
+        stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, ps.leaf_box, shift_a, shift_b, pose,
+                                                          motion, RULE_POSE, margin, stack, top, leaves, batch,
+                                                          counts, toward, near_a >= 0)
         if n_leaves > 0:
             tri = with_room(tri, n_tri, n_tri + triangle_pair_count(leaves, n_leaves, count))
             n_tri = intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, tri, n_tri,

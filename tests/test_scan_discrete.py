@@ -298,9 +298,10 @@ def test_a_descent_toward_points_finds_the_same_leaf_pairs_after_the_same_work(s
             scratch, stack, out = pair_scratch(), np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
             top = start_descent(ps, poses, poses, np.zeros((2, MOTION_WIDTH)), 0, 1, scratch, stack)
             counts = np.zeros(COUNT_WIDTH, np.int64)
-            _, _, out, k = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, scratch.pose,
-                                              scratch.motion, RULE_POSE, 1e-9, stack, top, out,
-                                              np.iinfo(np.int64).max, counts, toward, guided)
+            _, _, out, k = overlapping_leaves(ps.node_lo, ps.node_hi, ps.node_first, ps.node_count, ps.leaf_box,
+                                              *ps.leaf_box_shift[ps.object_mesh], scratch.pose, scratch.motion,
+                                              RULE_POSE, 1e-9, stack, top, out, np.iinfo(np.int64).max, counts,
+                                              toward, guided)
             found.append((out[:k], counts[COUNT_NODE_PAIRS]))
         (plain, plain_work), (near_first, near_first_work) = found
         assert plain.shape[0] > 20

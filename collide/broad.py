@@ -600,9 +600,10 @@ def leaves_apart_along_normals(leaf_box, row_a, row_b, rp_a0, rp_a1, rp_b0, rp_b
     B's frame at both ends of the step, rp_b0, rp_b1 B's in A's; margins margin_a,
     margin_b), whether a leaf of A and a leaf of B (rows row_a, row_b of leaf_box:
     packed.oriented_leaf_boxes) stay apart all along the step along A's leaf normal (in
-    A's frame) or B's (in B's frame). A leaf is usually a nearly flat patch, thin along
-    its normal where its axis-aligned box is not, so two patches facing each other across
-    a gap are told apart here rather than triangle pair by triangle pair."""
+    A's frame) or B's (in B's frame); under RULE_POSE the same with both ends at the one
+    pose. A leaf is usually a nearly flat patch, thin along its normal where its
+    axis-aligned box is not, so two patches facing each other across a gap are told
+    apart here rather than triangle pair by triangle pair."""
     return (_apart_along_normal(leaf_box, row_a, row_b, rp_b0, rp_b1, margin_b)
             or _apart_along_normal(leaf_box, row_b, row_a, rp_a0, rp_a1, margin_a))
 

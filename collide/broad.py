@@ -12,7 +12,7 @@ Two levels:
    - ``RULE_POSE``: the objects at one pose. B's node boxes become oriented
      boxes in A's body frame, tested against A's axis-aligned node boxes with
      the separating-axis theorem (15 axes); a leaf pair also along both leaves'
-     normals (leaves_apart_along_normals), as under RULE_SWEPT_RIGID below.
+     normals (leaves_apart_along_normals_at), as under RULE_SWEPT_RIGID below.
    - ``RULE_SWEPT``: the objects moving from pose 0 to pose 1 over one step.
      Each point's chord (straight path between its two end positions) stays
      inside the union of its world boxes at both ends, and its real path
@@ -352,7 +352,7 @@ def overlapping_leaves(lo, hi, first, count, leaf_box, box_shift_a, box_shift_b,
     grow when full. counts: int64 rows.COUNT_* counters. Returns (stack, top, out, k),
     rows out[:k]. Node pairs are visited in a fixed order: results are deterministic.
     Under RULE_POSE a leaf pair is also checked along both leaves' normals
-    (leaves_apart_along_normals at one pose), when both meshes have leaf boxes (leaf_box,
+    (leaves_apart_along_normals_at), when both meshes have leaf boxes (leaf_box,
     rows node + box_shift_a (A's nodes) or box_shift_b; packed.NO_LEAF_BOXES: none).
 
     toward: float64 (2, 3) a point in A's and one in B's body frame, read when ``guided``.
@@ -393,8 +393,8 @@ def overlapping_leaves(lo, hi, first, count, leaf_box, box_shift_a, box_shift_b,
             leaf_a = count[na] > 0
             leaf_b = count[nb] > 0
             if leaf_a and leaf_b:
-                if not (boxes and leaves_apart_along_normals(leaf_box, na + box_shift_a, nb + box_shift_b, rel_ab,
-                                                             rel_ab, rel, rel, margin, margin)):
+                if not (boxes and leaves_apart_along_normals_at(leaf_box, na + box_shift_a, nb + box_shift_b, rel_ab,
+                                                                rel, margin)):
                     k = _put_pair(out, k, na, nb)
                 continue
             open_a = opens_a(leaf_a, leaf_b, box_a, box_b)
@@ -600,37 +600,44 @@ def leaves_apart_along_normals(leaf_box, row_a, row_b, rp_a0, rp_a1, rp_b0, rp_b
     B's frame at both ends of the step, rp_b0, rp_b1 B's in A's; margins margin_a,
     margin_b), whether a leaf of A and a leaf of B (rows row_a, row_b of leaf_box:
     packed.oriented_leaf_boxes) stay apart all along the step along A's leaf normal (in
-    A's frame) or B's (in B's frame); under RULE_POSE the same with both ends at the one
-    pose. A leaf is usually a nearly flat patch, thin along its normal where its
-    axis-aligned box is not, so two patches facing each other across a gap are told
-    apart here rather than triangle pair by triangle pair."""
-    return (_apart_along_normal(leaf_box, row_a, row_b, rp_b0, rp_b1, margin_b)
-            or _apart_along_normal(leaf_box, row_b, row_a, rp_a0, rp_a1, margin_a))
+    A's frame) or B's (in B's frame). A leaf is usually a nearly flat patch, thin along
+    its normal where its axis-aligned box is not, so two patches facing each other across
+    a gap are told apart here rather than triangle pair by triangle pair. The moving
+    leaf's extent along the normal is the blend of its extents at both ends, so apart at
+    both ends, on the same side, is apart throughout."""
+    side = _side_along_normal(leaf_box, row_a, row_b, rp_b0, margin_b)
+    if side != 0 and side == _side_along_normal(leaf_box, row_a, row_b, rp_b1, margin_b):
+        return True
+    side = _side_along_normal(leaf_box, row_b, row_a, rp_a0, margin_a)
+    return side != 0 and side == _side_along_normal(leaf_box, row_b, row_a, rp_a1, margin_a)
 
 
 @njit_borrowing
-def _apart_along_normal(leaf_box, still, moving, rp0, rp1, margin):
+def leaves_apart_along_normals_at(leaf_box, row_a, row_b, rp_a, rp_b, margin):
+    """leaves_apart_along_normals at one pose (RULE_POSE): rp_a places A's leaf in B's
+    frame, rp_b B's in A's."""
+    return (_side_along_normal(leaf_box, row_a, row_b, rp_b, margin) != 0
+            or _side_along_normal(leaf_box, row_b, row_a, rp_a, margin) != 0)
+
+
+@njit_borrowing
+def _side_along_normal(leaf_box, still, moving, rp, margin):
     """Leaf ``still`` rests in its own body frame; leaf ``moving`` is placed in that frame by
-    pose tuples rp0, rp1 at the step's ends, each of its points within margin of its
-    chord between them. Whether the two stay apart by more than margin along still's
-    normal (its box's first axis) all along: the moving leaf's extent along it is the
-    blend of its extents at both ends, so apart at both ends, on the same side, is apart
-    throughout (each end's test allowing for its own rounding)."""
+    pose tuple rp, each of its points taken within margin of where rp puts it. Along
+    still's normal (its box's first axis), by more than margin allowing for rounding: 1
+    when moving lies above still, -1 below, 0 neither."""
     u0, u1, u2 = leaf_box[still, LEAF_AXES], leaf_box[still, LEAF_AXES + 1], leaf_box[still, LEAF_AXES + 2]
     lo, hi, size = leaf_box[still, LEAF_NORMAL_LO], leaf_box[still, LEAF_NORMAL_HI], leaf_box[still, LEAF_SIZE]
-    lo0, hi0, size0 = extent_along(leaf_box, moving, rp0[0], rp0[1], rp0[2], rp0[4], rp0[5], rp0[6], rp0[8], rp0[9],
-                                   rp0[10], rp0[3], rp0[7], rp0[11], u0, u1, u2)
-    m0 = margin + _NORMAL_ULPS * (size + size0)
-    above = lo0 - m0 > hi
-    if not (above or hi0 + m0 < lo):
-        return False
-    lo1, hi1, size1 = extent_along(leaf_box, moving, rp1[0], rp1[1], rp1[2], rp1[4], rp1[5], rp1[6], rp1[8], rp1[9],
-                                   rp1[10], rp1[3], rp1[7], rp1[11], u0, u1, u2)
-    m1 = margin + _NORMAL_ULPS * (size + size1)
-    return lo1 - m1 > hi if above else hi1 + m1 < lo
+    lo_m, hi_m, size_m = extent_along(leaf_box, moving, rp, u0, u1, u2)
+    m = margin + _NORMAL_ULPS * (size + size_m)
+    if lo_m - m > hi:
+        return 1
+    if hi_m + m < lo:
+        return -1
+    return 0
 
 
-#: rounding allowance of _apart_along_normal, relative to the size of the numbers it adds
+#: rounding allowance of _side_along_normal, relative to the size of the numbers it adds
 _NORMAL_ULPS = 64.0 * 2.0 ** -52
 
 

@@ -179,29 +179,32 @@ def _leaf_box(start, n, prim_ids, faces, vertices, out, node):
             out[node, LEAF_AXES + 3 * i + k] = axes[3 * i + k]
     for k in range(3):
         out[node, LEAF_CENTRE + k] = mids[0] * axes[k] + mids[1] * axes[3 + k] + mids[2] * axes[6 + k]
-    lo, hi, size = extent_along(out, node, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
-                                axes[0], axes[1], axes[2])
+    lo, hi, size = extent_along(out, node, IDENTITY_POSE, axes[0], axes[1], axes[2])
     out[node, LEAF_NORMAL_LO] = lo
     out[node, LEAF_NORMAL_HI] = hi
     out[node, LEAF_SIZE] = size
 
 
+#: the identity pose as a pose tuple (motion.pose_tuple: [R | t] row by row)
+IDENTITY_POSE = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
 @njit(cache=True, inline="always")
-def extent_along(leaf_box, node, r00, r01, r02, r10, r11, r12, r20, r21, r22, t0, t1, t2, u0, u1, u2):
+def extent_along(leaf_box, node, rp, u0, u1, u2):
     """The range of u . x over the oriented box of leaf ``node`` (rows of leaf_box) placed
-    by [R | t] (entries r00 ... r22, t0, t1, t2), u a unit vector of the frame it is placed
-    in: (lo, hi, the size of the numbers they are computed from, for rounding bounds)."""
-    v0 = r00 * u0 + r10 * u1 + r20 * u2  # v = R^T u: u . (R x + t) = v . x + u . t
-    v1 = r01 * u0 + r11 * u1 + r21 * u2
-    v2 = r02 * u0 + r12 * u1 + r22 * u2
+    by pose tuple rp ([R | t] row by row), u a unit vector of the frame it is placed in:
+    (lo, hi, the size of the numbers they are computed from, for rounding bounds)."""
+    v0 = rp[0] * u0 + rp[4] * u1 + rp[8] * u2  # v = R^T u: u . (R x + t) = v . x + u . t
+    v1 = rp[1] * u0 + rp[5] * u1 + rp[9] * u2
+    v2 = rp[2] * u0 + rp[6] * u1 + rp[10] * u2
     c0, c1, c2 = leaf_box[node, LEAF_CENTRE], leaf_box[node, LEAF_CENTRE + 1], leaf_box[node, LEAF_CENTRE + 2]
-    centre = (t0 * u0 + t1 * u1 + t2 * u2) + (v0 * c0 + v1 * c1 + v2 * c2)
+    centre = (rp[3] * u0 + rp[7] * u1 + rp[11] * u2) + (v0 * c0 + v1 * c1 + v2 * c2)
     extent = 0.0
     for i in range(3):
         a = LEAF_AXES + 3 * i
         extent += leaf_box[node, LEAF_HALF + i] * abs(v0 * leaf_box[node, a] + v1 * leaf_box[node, a + 1]
                                                       + v2 * leaf_box[node, a + 2])
-    size = abs(t0) + abs(t1) + abs(t2) + abs(c0) + abs(c1) + abs(c2) + extent
+    size = abs(rp[3]) + abs(rp[7]) + abs(rp[11]) + abs(c0) + abs(c1) + abs(c2) + extent
     return centre - extent, centre + extent, size
 
 

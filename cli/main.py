@@ -681,8 +681,8 @@ def main(argv=None):
     previous = _install_handlers()
     try:
         code = _run(argv)
-    except Terminated as exc:  # a signal in the instant after the command's own handling
-        code = 128 + exc.signum
+    except Terminated as exc:  # a signal in the instant before or after the command's own handling
+        code = _stopped(exc)
     finally:
         _restore_handlers(previous)
     if _AS_PROGRAM:

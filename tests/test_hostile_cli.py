@@ -19,6 +19,7 @@ from conftest import (
     default_sigint,
     identity_quaternions,
     run_cli,
+    run_in_process,
     signal_when_scanning,
     write_box,
     write_trajectory,
@@ -284,6 +285,25 @@ def test_ctrl_c_while_starting_up_is_quiet(scanned, delay):
         pytest.skip("finished before the interrupt")
     assert proc.returncode == 130, stderr
     assert stderr.strip() == "collide: interrupted"
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_signal_before_the_command_runs_says_so(monkeypatch, scanned, signum):
+    """A stop signal that lands in main before the command's own handling is in place
+    (here: while logging is set up) exits 128 + N with the one line, as anywhere else
+    (it used to exit silently: the start-up Ctrl-C test's rare empty stderr)."""
+    from collide_cli import main as cli_main
+
+    from collide.errors import Terminated
+
+    def stopped():
+        raise Terminated(signum)
+    monkeypatch.setattr(cli_main, "_configure_logging", stopped)
+    _, traj, _ = scanned
+    result = run_in_process("validate", traj)
+    assert result.returncode == 128 + signum
+    expected = "collide: interrupted" if signum == signal.SIGINT else "collide: terminated by SIGTERM"
+    assert result.stderr.strip() == expected
 
 
 def test_a_stop_signal_while_the_handlers_are_restored_is_not_lost(monkeypatch):

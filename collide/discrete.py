@@ -87,10 +87,16 @@ NEAR_HIT_BATCH = 1
 def object_margins(ps, rp0, rp1, out):
     """Rounding margin (length units) of each object over poses rp0 and rp1 (N, 3, 4) into out (N,)."""
     for o in range(rp0.shape[0]):
-        scale = 0.0
-        for rp in (rp0, rp1):
-            scale = max(scale, abs(rp[o, 0, 3]) + abs(rp[o, 1, 3]) + abs(rp[o, 2, 3]))
-        out[o] = config.BOX_MARGIN_REL * (scale + ps.radius[ps.object_mesh[o]]) + config.BOX_MARGIN_ABS
+        out[o] = object_margin(ps, rp0, rp1, o)
+
+
+@njit_borrowing
+def object_margin(ps, rp0, rp1, o):
+    """object_margins of object o alone."""
+    scale = 0.0
+    for rp in (rp0, rp1):
+        scale = max(scale, abs(rp[o, 0, 3]) + abs(rp[o, 1, 3]) + abs(rp[o, 2, 3]))
+    return config.BOX_MARGIN_REL * (scale + ps.radius[ps.object_mesh[o]]) + config.BOX_MARGIN_ABS
 
 
 @njit(cache=True)
@@ -432,25 +438,26 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, stack, coun
     return stack, best_a, best_b
 
 
-@njit(cache=True)
-def smallest_touching_pairs(ps, poses, static, frame, wanted):
-    """The smallest intersecting triangle pair of each object pair wanted[k] = (a, b)
-    (int64 (K, 2)) at ``frame``: int64 (K, 2) rows (tri_a, tri_b), (-1, -1) where a pair
-    does not touch. The same pair as the smallest of scan_frames' collected pairs,
-    found without enumerating them. ps's BVHs must be in smallest-id order (as
-    collide.bvh builds them)."""
+@njit(cache=True, nogil=True)
+def smallest_touching_pairs(ps, poses, static, rows, wanted, start, stop):
+    """The smallest intersecting triangle pair of object pair wanted[k] = (a, b) (int64
+    (K, 2)) at poses[rows[k]] (rows int64 (K,)), for k in [start, stop): int64
+    (stop - start, 2) rows (tri_a, tri_b), (-1, -1) where a pair does not touch. The same
+    pair as the smallest of scan_frames' collected pairs, found without enumerating them.
+    ps's BVHs must be in smallest-id order (as collide.bvh builds them). Items of one
+    pose row next to each other share its placed vertices. Releases the GIL (chunks of
+    items run in parallel threads)."""
     n_objects = poses.shape[1]
-    rp = poses[frame]
     world = np.empty((ps.world_start[n_objects], 3))
     stamp = new_stamps(ps.world_start[n_objects])
-    margin = np.empty(n_objects)
-    object_margins(ps, rp, rp, margin)
     stack = np.empty((64, 4), np.int64)
     counts = np.zeros(COUNT_WIDTH, np.int64)
-    out = np.empty((wanted.shape[0], 2), np.int64)
-    for k in range(wanted.shape[0]):
+    out = np.empty((stop - start, 2), np.int64)
+    for k in range(start, stop):
+        rp = poses[rows[k]]
         a = wanted[k, 0]
         b = wanted[k, 1]
-        stack, out[k, 0], out[k, 1] = _smallest_pair_of(ps, rp, frame, a, b, margin[a] + margin[b], static, stamp,
-                                                        world, stack, counts)
+        margin = object_margin(ps, rp, rp, a) + object_margin(ps, rp, rp, b)
+        stack, out[k - start, 0], out[k - start, 1] = _smallest_pair_of(ps, rp, rows[k], a, b, margin, static,
+                                                                        stamp, world, stack, counts)
     return out

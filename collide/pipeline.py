@@ -462,31 +462,31 @@ def _total_counts(counts):
     return np.sum(counts, axis=0) if counts else np.zeros(COUNT_WIDTH, np.int64)
 
 
-def smallest_pairs_at_frames(contacts, where, ps, poses, static):
+def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
     """Set each contact's (tri_a, tri_b) that came from a frame hit to the smallest
     intersecting pair at that frame (hits found without collecting pairs hold the
-    first pair found, which depends on the BVH and the chunks): one branch-and-bound
-    search (discrete.smallest_touching_pairs) per such frame, of just the object pairs
-    that need it. poses: PoseSource (read a block of those frames at a time)."""
+    first pair found, which depends on the BVH and the chunks): a branch-and-bound
+    search (discrete.smallest_touching_pairs) per such contact, in ``workers`` threads.
+    poses: PoseSource (read a block of those frames at a time)."""
     steps, _, from_hit = where
-    frames = np.unique(steps[from_hit])
-    for group in range(0, frames.size, poses.block):
-        group_frames = frames[group:group + poses.block]
+    rows = np.flatnonzero(from_hit)
+    rows = rows[np.argsort(steps[rows], kind="stable")]  # by frame: a frame's contacts share its placed vertices
+    frames = steps[rows]
+    unique_frames = np.unique(frames)
+    for group in range(0, unique_frames.size, poses.block):
+        group_frames = unique_frames[group:group + poses.block]
         block, block_rows = poses.at(group_frames)
-        for f, row in zip(group_frames, block_rows):
-            _smallest_pairs_at_frame(contacts, np.flatnonzero(from_hit & (steps == f)), ps, block, row, static, f)
-
-
-def _smallest_pairs_at_frame(contacts, rows, ps, poses, row, static, f):
-    """smallest_pairs_at_frames for the contacts ``rows`` of frame f, whose poses are
-    poses[row] (float64 (N, 3, 4))."""
-    wanted = np.ascontiguousarray(np.stack([contacts["object_a"][rows], contacts["object_b"][rows]], axis=-1),
-                                  dtype=np.int64)
-    smallest = smallest_touching_pairs(ps, poses, static, np.int64(row), wanted)
-    if (smallest < 0).any():
-        raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
-    contacts["tri_a"][rows] = smallest[:, 0]
-    contacts["tri_b"][rows] = smallest[:, 1]
+        items = rows[np.searchsorted(frames, group_frames[0]):np.searchsorted(frames, group_frames[-1], side="right")]
+        pose_rows = np.ascontiguousarray(block_rows[np.searchsorted(group_frames, steps[items])], dtype=np.int64)
+        wanted = np.ascontiguousarray(np.stack([contacts["object_a"][items], contacts["object_b"][items]], axis=-1),
+                                      dtype=np.int64)
+        smallest = np.concatenate([np.zeros((0, 2), np.int64)] + _run_chunks(
+            smallest_touching_pairs, (ps, block, static, pose_rows, wanted), (), items.size, workers, None))
+        if (smallest < 0).any():
+            f = steps[items[np.flatnonzero(smallest[:, 0] < 0)[0]]]
+            raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
+        contacts["tri_a"][items] = smallest[:, 0]
+        contacts["tri_b"][items] = smallest[:, 1]
 
 
 def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_tol, workers, progress,
@@ -662,9 +662,9 @@ def check_motion(scene, ps, poses, frame_index, interpolation, warn_angle):
                     frames(worst.step), how, size[worst.obj], config.LINEAR_DEVIATION_WARN_REL)
 
 
-def _fill_contact_points(contacts, where, ps, poses, interpolation):
+def _fill_contact_points(contacts, where, ps, poses, interpolation, workers=1):
     """World contact point of each contact's (tri_a, tri_b) at its first moment
-    (closest.contact_points).
+    (closest.contact_points, in ``workers`` threads).
 
     where = (step, u): the moment is fraction u of the step from frame step to
     step+1 (u = 0: the frame itself), where objects move as ``interpolation`` says.
@@ -685,10 +685,10 @@ def _fill_contact_points(contacts, where, ps, poses, interpolation):
         rows = np.ascontiguousarray(order[first:last], dtype=np.int64)
         row0 = block_rows[np.searchsorted(frames, steps[rows])]
         row1 = block_rows[np.searchsorted(frames, np.minimum(steps[rows] + 1, poses.n_frames - 1))]
-        contact_points(ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0.astype(np.int64),
-                       row1.astype(np.int64), np.ascontiguousarray(fractions, dtype=np.float64),
-                       interpolation == "screw", contacts["object_a"], contacts["object_b"], contacts["tri_a"],
-                       contacts["tri_b"], point)
+        _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0.astype(np.int64),
+                                     row1.astype(np.int64), np.ascontiguousarray(fractions, dtype=np.float64),
+                                     contacts["object_a"], contacts["object_b"], contacts["tri_a"], contacts["tri_b"],
+                                     point), (interpolation == "screw",), rows.size, workers, None)
     contacts["point_x"][:], contacts["point_y"][:], contacts["point_z"][:] = point.T
 
 
@@ -792,7 +792,7 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True,
                        INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES)
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+    smallest_touching_pairs(ps, poses, static, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0)
     compile_contact_points(ps, poses)
 
 
@@ -801,8 +801,8 @@ def compile_contact_points(ps, poses):
     builder and the motion checks, which run before this) on no contacts."""
     none = np.zeros(0, np.int64)
     ids = np.zeros(0, CONTACT_COLUMNS["object_a"])
-    contact_points(ps, np.ascontiguousarray(poses, dtype=np.float64), none, none, none, np.zeros(0), True, ids, ids,
-                   ids, ids, np.zeros((0, 3)))
+    contact_points(ps, np.ascontiguousarray(poses, dtype=np.float64), none, none, none, np.zeros(0), ids, ids, ids, ids,
+                   np.zeros((0, 3)), 0, 0, True)
 
 
 def _check_options(mode, interpolation, workers):
@@ -877,8 +877,8 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
             contacts, where = intervals_from_hits(hits, frame_time)
         stage("contact points")
         if not triangle_pairs:
-            smallest_pairs_at_frames(contacts, where, ps, poses, scene.static)
-        _fill_contact_points(contacts, where, ps, poses, interpolation)
+            smallest_pairs_at_frames(contacts, where, ps, poses, scene.static, workers)
+        _fill_contact_points(contacts, where, ps, poses, interpolation, workers)
         timings["scan_s"] = time.perf_counter() - start
         result = _result(scene, meshes, trajectory, mode, split, leaf_size, triangle_pairs, frames, workers,
                          scheduler, time_tol, interpolation, glob, filters, command, index, frame_time, contacts,

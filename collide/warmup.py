@@ -186,7 +186,7 @@ def _smallest_touching_pairs(ps, poses, static, pairs):
     import numpy as np
 
     from .discrete import smallest_touching_pairs
-    smallest_touching_pairs(ps, poses, static, np.int64(0), np.zeros((0, 2), np.int64))
+    smallest_touching_pairs(ps, poses, static, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0)
 
 
 def _scan_intervals(ps, poses, static, pairs):

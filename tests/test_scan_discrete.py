@@ -201,13 +201,17 @@ def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
     for leaf_size in (1, 4):
         ps, _ = pack_scene(meshes, np.array([0, 0, 1]), leaf_size=leaf_size)
         _, every, _ = scan_frames(ps, poses, static, pairs, 0, n_frames, True, False)
-        for f in range(n_frames):
-            wanted = np.array([(0, 1), (0, 2), (1, 2)], np.int64)
-            found = smallest_touching_pairs(ps, poses, static, np.int64(f), wanted)
-            for (a, b), got in zip(wanted, found):
-                at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]
-                expected = min(map(tuple, at[:, [PAIR_TRI_A, PAIR_TRI_B]].tolist())) if at.size else (-1, -1)
-                assert tuple(got) == expected, (leaf_size, f, a, b)
+        # every (frame, pair) in one call, frames interleaved (each item places its own frame's
+        # vertices), asked for in two chunks
+        items = rng.permutation([(f, a, b) for f in range(n_frames) for a, b in ((0, 1), (0, 2), (1, 2))])
+        rows, wanted = np.ascontiguousarray(items[:, 0]), np.ascontiguousarray(items[:, 1:])
+        half = len(items) // 2
+        found = np.concatenate([smallest_touching_pairs(ps, poses, static, rows, wanted, 0, half),
+                                smallest_touching_pairs(ps, poses, static, rows, wanted, half, len(items))])
+        for (f, a, b), got in zip(items, found):
+            at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]
+            expected = min(map(tuple, at[:, [PAIR_TRI_A, PAIR_TRI_B]].tolist())) if at.size else (-1, -1)
+            assert tuple(got) == expected, (leaf_size, f, a, b)
 
 
 @pytest.mark.parametrize("n_rows", [1, 1023, 1024, 1025, 5000])

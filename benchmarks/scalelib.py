@@ -524,8 +524,8 @@ def print_breakdown(meshes, trajectory, mode_list, n_frames, repeat, print_table
         rest = stage - sum(steps.values())
         rows.append([mode, stage] + [steps.get(s, 0.0) for s in SCAN_STEPS] + [rest])
     print_table(["scan stage", "total s", *[s.strip("_") for s in SCAN_STEPS], "other s"], rows)
-    print("   (smallest_pairs_at_frames: re-scans, serially, every frame where a contact interval begins, to "
-          "report its smallest triangle pair)")
+    print("   (smallest_pairs_at_frames: searches each contact that begins at a frame for its smallest "
+          "triangle pair there, in --workers threads)")
     if "continuous" not in mode_list:
         return
     b = kernel_breakdown(meshes, trajectory, repeat)

@@ -94,7 +94,7 @@ def intervals_from_hits(hits, times):
     (tri_a, tri_b) from a frame hit.
     """
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
-    hits = hits[np.lexsort((hits[:, HIT_FRAME], hits[:, HIT_B], hits[:, HIT_A]))]
+    hits = hits[np.lexsort((hits[:, HIT_FRAME], _pair_key(hits[:, HIT_A], hits[:, HIT_B])))]
     a, b, frame = hits[:, HIT_A], hits[:, HIT_B], hits[:, HIT_FRAME]
     starts = _new_pair(a, b)
     starts[1:] |= frame[1:] != frame[:-1] + 1
@@ -144,7 +144,7 @@ def intervals_from_steps(ids, fractions, hits, times):
     is_frame = np.concatenate([np.zeros(ids.shape[0], bool), np.ones(hits.shape[0], bool)])
     step = np.concatenate([ids[:, SWEPT_STEP], hits[:, HIT_FRAME]])
     u = np.concatenate([fractions[:, T_BEGIN], np.zeros(hits.shape[0])])
-    order = np.lexsort((tri_b, tri_a, ~is_frame, t0, b, a))
+    order = merge_order(a, b, t0, is_frame, tri_a, tri_b)
     a, b, t0, t1, tri_a, tri_b, is_frame, step, u = (x[order] for x in (a, b, t0, t1, tri_a, tri_b, is_frame,
                                                                         step, u))
     new_pair = _new_pair(a, b)
@@ -157,6 +157,49 @@ def intervals_from_steps(ids, fractions, hits, times):
     kind = np.where(seen_at_frame, KIND_FRAME, KIND_SWEPT)
     columns = _contact_columns(a[first], b[first], t0[first], t_end, kind, tri_a[first], tri_b[first], times)
     return columns, Where(step[first], u[first], is_frame[first])
+
+
+def merge_order(a, b, t0, is_frame, tri_a, tri_b):
+    """int64 indices sorting rows by (a, b, t0, frame hits first, tri_a, tri_b): the order of
+    np.lexsort of the six keys (stable), found by sorting on (a, b, t0) alone and then
+    ordering only the rows that tie there by the rest. Ties are common (a frame hit and
+    the swept contact that starts at its frame: nearly every row at 1000 bodies) but
+    almost all come in twos, which are put in order by one vectorised comparison;
+    sorting every row by every key took three times as long."""
+    pair = _pair_key(a, b)
+    order = np.lexsort((t0, pair))
+    p_s, t_s = pair[order], t0[order]
+    tied = (p_s[1:] == p_s[:-1]) & (t_s[1:] == t_s[:-1])  # row k + 1 ties with row k
+    if not tied.any():
+        return order
+    starts = np.flatnonzero(tied & np.append(True, ~tied[:-1]))  # first row of each run of ties
+    ends = np.flatnonzero(tied & np.append(~tied[1:], True)) + 1  # and its last row
+    two = ends - starts == 1
+    first, second = order[starts[two]], order[ends[two]]
+    swap = _after(first, second, is_frame, tri_a, tri_b)
+    order[starts[two][swap]], order[ends[two][swap]] = second[swap], first[swap]
+    if (~two).any():  # rare: three or more rows at one moment, sorted together, run by run
+        lo, hi = starts[~two], ends[~two] + 1
+        at = np.repeat(lo - np.cumsum(np.append(0, (hi - lo)[:-1])), hi - lo) + np.arange((hi - lo).sum())
+        run = np.repeat(np.arange(lo.size), hi - lo)
+        rows = order[at]
+        order[at] = rows[np.lexsort((tri_b[rows], tri_a[rows], ~is_frame[rows], run))]
+    return order
+
+
+def _pair_key(a, b):
+    """int64 keys ordered as the object pairs (a, b) (ids in [0, 2**31)): a * n + b, n one
+    more than the largest id. Sorting on one key instead of two is about 4x faster."""
+    n = max(int(a.max()), int(b.max())) + 1 if a.size else 1
+    return a.astype(np.int64) * n + b
+
+
+def _after(i, j, is_frame, tri_a, tri_b):
+    """bool: row i comes after row j by (frame hits first, tri_a, tri_b)."""
+    fi, fj = is_frame[i], is_frame[j]
+    same_kind = fi == fj
+    return ((fj & ~fi) | (same_kind & (tri_a[i] > tri_a[j]))
+            | (same_kind & (tri_a[i] == tri_a[j]) & (tri_b[i] > tri_b[j])))
 
 
 def _running_max_by_group(values, group_starts):

@@ -697,8 +697,27 @@ def _engine_imported():
     which may compile kernels here). The other commands are short and end with it off;
     code that calls main in its own process keeps its collector as it was."""
     if _AS_PROGRAM:
+        _skip_numba_blas_probe()
         gc.freeze()
         gc.enable()
+
+
+def _skip_numba_blas_probe():
+    """Tell numba, before it first loads a kernel, that there is no BLAS. It probes for
+    SciPy's then (importing scipy.linalg: about 0.15 s of every run where SciPy is
+    installed), for np.dot and np.linalg inside compiled code, which collide's kernels do
+    not use. As the program only (other code in the process may want them); left alone if
+    numba has already looked or is laid out otherwise."""
+    try:
+        from numba.np import linalg
+    except ImportError:
+        return
+    if "numba.np.arraymath" in sys.modules or not callable(getattr(linalg, "ensure_blas", None)):
+        return
+
+    def no_blas():
+        raise ImportError("collide's kernels use no BLAS")
+    linalg.ensure_blas = no_blas
 
 
 def _ignore_late_signals():

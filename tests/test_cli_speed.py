@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import run_cli
 
@@ -261,3 +262,27 @@ def test_warm_scan_does_not_import_trimesh(two_boxes, tmp_path):
             for i in range(2)]
     assert all(r.returncode == 0 for r in runs), runs[0].stderr
     assert runs[1].stdout.strip().endswith("no trimesh"), runs[1].stdout
+
+
+def test_the_program_skips_numba_s_blas_probe(two_boxes, tmp_path):
+    """As the program, a warm scan (both modes) never imports scipy.linalg: numba would, to
+    probe for a BLAS that collide's kernels do not use (about 0.15 s of every run with
+    SciPy installed). The scan's contacts are those of a scan in a process that probed."""
+    pytest.importorskip("scipy.linalg")
+    meshes, traj = two_boxes
+    script = ("import sys\nsys.argv[0] = 'collide'\nfrom collide_cli.main import main\ntry:\n"
+              "    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+              "print('scipy.linalg imported' if 'scipy.linalg' in sys.modules else 'no scipy.linalg')\n")
+    for mode in ("discrete", "continuous"):
+        out = tmp_path / f"{mode}.h5"
+        for _ in range(2):  # the second with the meshes in the cache (parsing them imports SciPy)
+            out.unlink(missing_ok=True)
+            run = subprocess.run([sys.executable, "-c", script, "scan", str(meshes), str(traj), "-o", str(out),
+                                  "--mode", mode], capture_output=True, text=True)
+            assert run.returncode == 0, run.stderr
+        assert run.stdout.strip().endswith("no scipy.linalg"), run.stdout
+        probed = collide.scan(meshes, traj, mode=mode).contacts  # this test process has imported scipy.linalg
+        written = collide.read_contacts(out).contacts
+        assert probed["t_begin"].size > 0
+        for column in probed:
+            np.testing.assert_array_equal(written[column], probed[column])

@@ -299,17 +299,39 @@ def pending_pop(pending):
     pending.size[0] = n
     if n > 0:
         _swap(pending, 0, n)
-        i = 0
-        while True:
-            first = i
-            for child in (2 * i + 1, 2 * i + 2):
-                if child < n and _heap_before(pending, child, first):
-                    first = child
-            if first == i:
-                break
-            _swap(pending, i, first)
-            i = first
+        _sift_down(pending, 0, n)
     return key, tri_a, tri_b
+
+
+@njit_borrowing
+def _sift_down(pending, i, n):
+    """Move row i down the heap of rows [0, n) until no child comes before it."""
+    while True:
+        first = i
+        for child in (2 * i + 1, 2 * i + 2):
+            if child < n and _heap_before(pending, child, first):
+                first = child
+        if first == i:
+            return
+        _swap(pending, i, first)
+        i = first
+
+
+@njit(cache=True)
+def pending_of_keys(keys, n):
+    """A Pending of the rows (keys[i], i, 0) for i < n, heap-ordered in one pass from the
+    bottom up (O(n); n pending_push calls take O(n log n), and each call counts
+    references to the heap's arrays). Rows are distinct, so they pop in the same order
+    as after pushing them one by one."""
+    cap = max(n, 64)
+    pending = Pending(np.empty(cap), np.empty((cap, 2), np.int64), np.full(1, n, np.int64))
+    for i in range(n):
+        pending.keys[i] = keys[i]
+        pending.pairs[i, 0] = i
+        pending.pairs[i, 1] = 0
+    for i in range(n // 2 - 1, -1, -1):
+        _sift_down(pending, i, n)
+    return pending
 
 
 @njit(cache=True)

@@ -106,6 +106,7 @@ from .narrow import (
     new_pending,
     new_stamps,
     pending_first_key,
+    pending_of_keys,
     pending_pop,
     pending_push,
     pending_size,
@@ -516,9 +517,7 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
             keys[i] = -windows[i, 1] if backwards else windows[i, 0]
     # the leaf pairs by (key, index), that is in stable_order(keys), taken one at a time as they
     # are opened: a heap, since the search usually stops after a few (no full sort)
-    unopened = new_pending()
-    for i in range(n_leaves):
-        unopened = pending_push(unopened, keys[i], np.int64(i), np.int64(0))
+    unopened = pending_of_keys(keys, n_leaves)
     pending = new_pending()
     corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
     work = ccd_work()

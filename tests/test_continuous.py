@@ -673,8 +673,9 @@ def test_stable_order_is_numpys_stable_argsort():
 def test_leaf_pairs_leave_their_heap_in_numpys_stable_order():
     """The one-sided search takes its leaf pairs from a narrow.Pending heap keyed (key,
     index, 0): they come out in numpy's stable order, ties (many, with -0.0 == 0.0 and
-    inf) in index order, whatever the number it takes."""
-    from collide.narrow import new_pending, pending_pop, pending_push
+    inf) in index order, whatever the number it takes; built in one pass
+    (narrow.pending_of_keys) or pushed one by one."""
+    from collide.narrow import new_pending, pending_of_keys, pending_pop, pending_push
     rng = np.random.default_rng(5)
     for n in [1, 2, 3, 7, 16, 17, 100, 1000]:
         for _ in range(10):
@@ -685,6 +686,8 @@ def test_leaf_pairs_leave_their_heap_in_numpys_stable_order():
                 heap = pending_push(heap, keys[i], np.int64(i), np.int64(0))
             handed = [pending_pop(heap)[1] for i in range(n)]
             assert handed == list(np.argsort(keys, kind="stable")), keys
+            built = pending_of_keys(keys, np.int64(n))  # the same rows, heap-ordered in one pass
+            assert [pending_pop(built)[1] for i in range(n)] == handed, keys
 
 
 def test_leaf_boxes_hold_their_triangles():

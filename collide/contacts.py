@@ -180,11 +180,17 @@ def merge_order(a, b, t0, is_frame, tri_a, tri_b):
     order[starts[two][swap]], order[ends[two][swap]] = second[swap], first[swap]
     if (~two).any():  # rare: three or more rows at one moment, sorted together, run by run
         lo, hi = starts[~two], ends[~two] + 1
-        at = np.repeat(lo - np.cumsum(np.append(0, (hi - lo)[:-1])), hi - lo) + np.arange((hi - lo).sum())
+        at = _concatenated_ranges(lo, hi)
         run = np.repeat(np.arange(lo.size), hi - lo)
         rows = order[at]
         order[at] = rows[np.lexsort((tri_b[rows], tri_a[rows], ~is_frame[rows], run))]
     return order
+
+
+def _concatenated_ranges(lo, hi):
+    """int64: lo[0], ..., hi[0] - 1, then lo[1], ..., hi[1] - 1, and so on."""
+    sizes = hi - lo
+    return np.repeat(lo - np.cumsum(sizes) + sizes, sizes) + np.arange(sizes.sum())
 
 
 def _pair_key(a, b):

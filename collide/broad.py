@@ -78,19 +78,23 @@ _ABS_R_EPS = 1e-12
 # --- level 1: object pairs ----------------------------------------------------------
 
 @njit(cache=True)
-def sweep_and_prune(lo, hi):
+def sweep_and_prune(lo, hi, order):
     """Pairs (a, b), a < b, of overlapping closed boxes.
 
     lo, hi float64 (N, 3) -> int64 (K, 2), sorted by (a, b).
     Sorts box starts along the axis of largest spread and sweeps, so the cost
     is O(N log N + K) for boxes that are not all stacked along that axis.
+    order: int64 (N,) a permutation of range(N), kept by the caller from one call to the
+    next (np.arange(N) before the first): the boxes' sweep order, sorted here in place
+    starting from the last call's. Objects move little between frames, so it is nearly
+    sorted already and the sort nearly linear (sort_nearly_sorted).
     """
     n = lo.shape[0]
     axis = _widest_axis(lo)
     starts = np.empty(n)
     for i in range(n):
         starts[i] = lo[i, axis]
-    order = np.argsort(starts, kind="mergesort")
+    sort_nearly_sorted(starts, order)
     # the boxes in sweep order, the sweep axis first: the inner loop reads memory in order
     box = np.empty((n, 6))
     for s in range(n):
@@ -120,11 +124,66 @@ def sweep_and_prune(lo, hi):
         b = order[pairs[i, 1]]
         pairs[i, 0] = min(a, b)
         pairs[i, 1] = max(a, b)
-    keys = np.empty(k, np.int64)  # sort by (a, b)
+    return pairs_by_a_b(pairs, k, n)
+
+
+@njit(cache=True)
+def sort_nearly_sorted(keys, order):
+    """Sort order (int64 (N,), a permutation) in place so that keys[order] ascends: by
+    insertion, which costs one step per position an element moves, so little on an
+    order that is nearly sorted already; once the moves exceed a few per element (the
+    keys changed a lot, or the sweep axis did), a merge sort of keys instead. Ties may
+    end up in either order."""
+    n = order.shape[0]
+    budget = 8 * n + 64
+    moves = 0
+    for i in range(1, n):
+        j = order[i]
+        key = keys[j]
+        p = i - 1
+        while p >= 0 and keys[order[p]] > key:
+            order[p + 1] = order[p]
+            p -= 1
+        order[p + 1] = j
+        moves += i - 1 - p
+        if moves > budget:
+            order[:] = _merge_sorted_order(keys)
+            return
+
+
+@njit(cache=True)
+def _merge_sorted_order(keys):
+    return np.argsort(keys, kind="mergesort")
+
+
+@njit(cache=True)
+def pairs_by_a_b(pairs, k, n):
+    """Rows pairs[:k] (a, b), 0 <= a, b < n, sorted by (a, b): int64 (k, 2), a new array.
+    Two counting-sort passes (by b, then stably by a): O(k + n), against a merge sort of
+    keys a * n + b that took most of sweep_and_prune's sorting time at 1000 bodies."""
+    start = np.empty(n + 1, np.int64)
+    by_b = np.empty((k, 2), np.int64)
+    _counting_pass(pairs, k, 1, start, by_b)
+    out = np.empty((k, 2), np.int64)
+    _counting_pass(by_b, k, 0, start, out)
+    return out
+
+
+@njit_borrowing
+def _counting_pass(rows, k, column, start, out):
+    """Stable counting sort of rows[:k] by rows[:, column] (values in [0, n)) into out;
+    start: int64 (n + 1,) scratch."""
+    n = start.shape[0] - 1
+    start[:] = 0
     for r in range(k):
-        keys[r] = pairs[r, 0] * n + pairs[r, 1]
-    reorder_rows(pairs, np.argsort(keys, kind="mergesort"))
-    return pairs[:k].copy()
+        start[rows[r, column] + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    for r in range(k):
+        v = rows[r, column]
+        out[start[v], 0] = rows[r, 0]
+        out[start[v], 1] = rows[r, 1]
+        start[v] += 1
 
 
 @njit_borrowing

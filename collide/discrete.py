@@ -266,7 +266,7 @@ def _still_touching(ps, rp, f, a, b, static, stamp, world, tri_a, tri_b, scratch
 def _frame_keys(hits, start, stop, n_objects):
     """Sorted keys a * N + b of hits[start:stop] (one frame's) and their triangle pairs."""
     keys = hits[start:stop, HIT_A] * n_objects + hits[start:stop, HIT_B]
-    order = np.argsort(keys, kind="mergesort")  # the sort sweep_and_prune compiles too
+    order = np.argsort(keys, kind="mergesort")
     tris = np.empty((stop - start, 2), np.int64)
     for k in range(stop - start):
         tris[k, 0] = hits[start + order[k], HIT_TRI_A]
@@ -315,12 +315,13 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
     row = np.empty(PAIR_WIDTH, np.int64)
     previous_keys = np.zeros(0, np.int64)
     previous_tris = np.zeros((0, 2), np.int64)
+    sweep_order = np.arange(n_objects)  # sweep_and_prune's, carried from frame to frame
     for f in range(frame_start, frame_stop):
         frame_hits = n_hits
         rp = poses[f]
         object_margins(ps, rp, rp, margin)
         lo, hi = object_world_boxes(ps, rp, rp, still, 0.0, margin)
-        candidates = sweep_and_prune(lo, hi)
+        candidates = sweep_and_prune(lo, hi, sweep_order)
         for c in range(candidates.shape[0]):
             a = candidates[c, 0]
             b = candidates[c, 1]

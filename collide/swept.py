@@ -628,13 +628,14 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     rule = RULE_SWEPT_RIGID if interpolation == SCREW else RULE_SWEPT
     keys0, tris0 = _frame_contacts(touching, touching_tris, step_start, n_objects)
     keys1, tris1 = keys0, tris0
+    sweep_order = np.arange(n_objects)  # sweep_and_prune's, carried from step to step
     for k in range(step_start, step_stop):
         rp0 = poses[k]
         rp1 = poses[k + 1]
         object_margins(ps, rp0, rp1, margin)
         step_motions(interpolation, rp0, rp1, margin, motion)
         lo, hi = object_world_boxes(ps, rp0, rp1, motion, dist_tol, margin)
-        candidates = sweep_and_prune(lo, hi)
+        candidates = sweep_and_prune(lo, hi, sweep_order)
         meet = spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates)
         step_hits = n_hits
         if find_frames:

@@ -253,10 +253,43 @@ def test_sweep_and_prune_finds_exactly_the_overlapping_boxes(seed):
         hi[:, 0] = 1.0
     expected = [(a, b) for a in range(n) for b in range(a + 1, n)
                 if (lo[a] <= hi[b]).all() and (lo[b] <= hi[a]).all()]
-    found = sweep_and_prune(np.ascontiguousarray(lo), np.ascontiguousarray(hi))
+    found = sweep_and_prune(np.ascontiguousarray(lo), np.ascontiguousarray(hi), np.arange(n))
     assert [tuple(row) for row in found.tolist()] == expected
     if n > 2:
         assert expected  # the scene has overlaps to find
+
+
+def test_sweep_and_prune_carried_from_frame_to_frame():
+    """The sweep order carried between calls (as the scans do from frame to frame) gives
+    the same pairs as all N^2 pairs tested directly: boxes drifting a little per frame
+    (the order nearly sorted), a jump that reshuffles them, the sweep axis changing, and a
+    random order to start from (the sort then falls back to a merge sort)."""
+    from collide.broad import sort_nearly_sorted, sweep_and_prune
+    rng = np.random.default_rng(11)
+    n = 300
+    lo = rng.uniform(0, 10, (n, 3)) * np.array([3.0, 1.0, 1.0])  # spread most along x
+    size = rng.choice([0.0, 0.3, 1.5], (n, 3))
+    order = rng.permutation(n)
+    for frame in range(40):
+        if frame == 20:
+            lo = lo[:, [1, 0, 2]] * np.array([1.0, 3.0, 1.0]) / np.array([3.0, 1.0, 1.0])  # now widest along y
+        elif frame == 30:
+            lo = rng.uniform(0, 30, (n, 3))  # everything moves far
+        else:
+            lo = lo + rng.normal(0, 0.05, (n, 3))
+        hi = lo + size
+        lo_c, hi_c = np.ascontiguousarray(lo), np.ascontiguousarray(hi)
+        expected = [(a, b) for a in range(n) for b in range(a + 1, n)
+                    if (lo[a] <= hi[b]).all() and (lo[b] <= hi[a]).all()]
+        found = sweep_and_prune(lo_c, hi_c, order)
+        assert [tuple(row) for row in found.tolist()] == expected, frame
+        assert sorted(order.tolist()) == list(range(n))  # still a permutation
+    # the sort itself, from any start, with ties
+    for start in (np.arange(50), rng.permutation(50), np.arange(50)[::-1].copy()):
+        keys = rng.choice([0.0, 1.0, 2.5, -1.0], 50)
+        order = start.copy()
+        sort_nearly_sorted(keys, order)
+        assert np.all(np.diff(keys[order]) >= 0) and sorted(order.tolist()) == list(range(50))
 
 
 def _two_spheres(leaf_size=None):

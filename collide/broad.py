@@ -147,13 +147,8 @@ def sort_nearly_sorted(keys, order):
         order[p + 1] = j
         moves += i - 1 - p
         if moves > budget:
-            order[:] = _merge_sorted_order(keys)
+            order[:] = np.argsort(keys, kind="mergesort")
             return
-
-
-@njit(cache=True)
-def _merge_sorted_order(keys):
-    return np.argsort(keys, kind="mergesort")
 
 
 @njit(cache=True)

@@ -19,6 +19,12 @@ def _dot(a, b):
 
 
 @njit(cache=True, inline="always")
+def _length2(d):
+    """Squared length of d: _dot(d, d)."""
+    return _dot(d, d)
+
+
+@njit(cache=True, inline="always")
 def _cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
@@ -96,7 +102,7 @@ def _closest_on_edges(x, a, b, c):
     best = closest_point_on_segment(x, a, b)
     for p, q in ((b, c), (c, a)):
         y = closest_point_on_segment(x, p, q)
-        if _dot(_sub(y, x), _sub(y, x)) < _dot(_sub(best, x), _sub(best, x)):
+        if _length2(_sub(y, x)) < _length2(_sub(best, x)):
             best = y
     return best
 
@@ -161,21 +167,21 @@ def contact_point(p, q):
             b = tri[(i + 1) % 3]
             # a vertex against the other face
             y = closest_point_on_triangle(a, other[0], other[1], other[2])
-            gap = np.sqrt(_dot(_sub(y, a), _sub(y, a)))
+            gap = np.sqrt(_length2(_sub(y, a)))
             if gap < best_gap:
                 best_gap = gap
                 best = _midpoint(a, y)
             # an edge piercing the other face
             x = _edge_crossing(a, b, other[0], other[1], other[2])
             y = closest_point_on_triangle(x, other[0], other[1], other[2])
-            gap = np.sqrt(_dot(_sub(y, x), _sub(y, x)))
+            gap = np.sqrt(_length2(_sub(y, x)))
             if gap < best_gap:
                 best_gap = gap
                 best = _midpoint(x, y)
     for i in range(3):
         for j in range(3):
             s, t = closest_points_of_segments(tri_p[i], tri_p[(i + 1) % 3], tri_q[j], tri_q[(j + 1) % 3])
-            gap = np.sqrt(_dot(_sub(s, t), _sub(s, t)))
+            gap = np.sqrt(_length2(_sub(s, t)))
             if gap < best_gap:
                 best_gap = gap
                 best = _midpoint(s, t)

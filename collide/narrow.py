@@ -237,8 +237,9 @@ class Pending(NamedTuple):
 
 
 @njit(cache=True)
-def new_pending():
-    return Pending(np.empty(64), np.empty((64, 2), np.int64), np.zeros(1, np.int64))
+def new_pending(capacity=64):
+    """An empty Pending with room for ``capacity`` rows (it grows when full)."""
+    return Pending(np.empty(capacity), np.empty((capacity, 2), np.int64), np.zeros(1, np.int64))
 
 
 @njit_borrowing
@@ -323,8 +324,8 @@ def pending_of_keys(keys, n):
     bottom up (O(n); n pending_push calls take O(n log n), and each call counts
     references to the heap's arrays). Rows are distinct, so they pop in the same order
     as after pushing them one by one."""
-    cap = max(n, 64)
-    pending = Pending(np.empty(cap), np.empty((cap, 2), np.int64), np.full(1, n, np.int64))
+    pending = new_pending(max(n, 64))
+    pending.size[0] = n
     for i in range(n):
         pending.keys[i] = keys[i]
         pending.pairs[i, 0] = i

@@ -288,6 +288,50 @@ def append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b):
     return append_row(hits, n_hits, hit)
 
 
+@njit(cache=True, inline="always")  # part of its callers (scan_frames, swept.scan_intervals)
+def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_order, previous_keys, previous_tris,
+               collect_pairs, first_only, scratch, stack, leaves, tri, hit, hits, n_hits, row, found, n_found, counts):
+    """The frame test of frame f (poses rp (N, 3, 4)): the touching object pairs appended to
+    hits (n_hits rows used) and, when collect_pairs, their intersecting triangle pairs to
+    found. previous_keys, previous_tris: the previous frame's hits (_frame_keys; empty
+    unless first_only), whose triangle pair is tried first. margin (N,) is filled here;
+    still: zero motion rows; stamp, world: the lazily placed vertices; sweep_order:
+    sweep_and_prune's, carried from frame to frame. Returns (hits, n_hits, found,
+    n_found, stack, leaves, tri) (buffers grown when full)."""
+    n_objects = rp.shape[0]
+    object_margins(ps, rp, rp, margin)
+    lo, hi = object_world_boxes(ps, rp, rp, still, 0.0, margin)
+    candidates = sweep_and_prune(lo, hi, sweep_order)
+    for c in range(candidates.shape[0]):
+        a = candidates[c, 0]
+        b = candidates[c, 1]
+        if not pair_selected(pairs, a, b):
+            continue
+        before = key_row(previous_keys, a * n_objects + b)  # -1 unless first_only
+        near_a = previous_tris[before, 0] if before >= 0 else -1
+        near_b = previous_tris[before, 1] if before >= 0 else -1
+        if before >= 0 and _still_touching(ps, rp, f, a, b, static, stamp, world, near_a, near_b, scratch, tri,
+                                           counts):
+            n_tri = np.int64(1)
+        else:
+            stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
+                                                        stamp, world, first_only, near_a, near_b, scratch, stack,
+                                                        leaves, tri, counts)
+        if n_tri == 0:
+            continue
+        tri_a, tri_b = _smallest_pair(tri, n_tri)
+        hits, n_hits = append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b)
+        if collect_pairs:
+            for k in range(n_tri):
+                row[PAIR_FRAME] = f
+                row[PAIR_A] = a
+                row[PAIR_B] = b
+                row[PAIR_TRI_A] = tri[k, 0]
+                row[PAIR_TRI_B] = tri[k, 1]
+                found, n_found = append_row(found, n_found, row)
+    return hits, n_hits, found, n_found, stack, leaves, tri
+
+
 @njit(cache=True, nogil=True)
 def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs, first_only):
     """Discrete scan of frames [frame_start, frame_stop).
@@ -318,37 +362,9 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
     sweep_order = np.arange(n_objects)  # sweep_and_prune's, carried from frame to frame
     for f in range(frame_start, frame_stop):
         frame_hits = n_hits
-        rp = poses[f]
-        object_margins(ps, rp, rp, margin)
-        lo, hi = object_world_boxes(ps, rp, rp, still, 0.0, margin)
-        candidates = sweep_and_prune(lo, hi, sweep_order)
-        for c in range(candidates.shape[0]):
-            a = candidates[c, 0]
-            b = candidates[c, 1]
-            if not pair_selected(pairs, a, b):
-                continue
-            before = key_row(previous_keys, a * n_objects + b)  # -1 unless first_only
-            near_a = previous_tris[before, 0] if before >= 0 else -1
-            near_b = previous_tris[before, 1] if before >= 0 else -1
-            if before >= 0 and _still_touching(ps, rp, f, a, b, static, stamp, world, near_a, near_b, scratch, tri,
-                                               counts):
-                n_tri = np.int64(1)
-            else:
-                stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
-                                                            stamp, world, first_only, near_a, near_b, scratch, stack,
-                                                            leaves, tri, counts)
-            if n_tri == 0:
-                continue
-            tri_a, tri_b = _smallest_pair(tri, n_tri)
-            hits, n_hits = append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b)
-            if collect_pairs:
-                for k in range(n_tri):
-                    row[PAIR_FRAME] = f
-                    row[PAIR_A] = a
-                    row[PAIR_B] = b
-                    row[PAIR_TRI_A] = tri[k, 0]
-                    row[PAIR_TRI_B] = tri[k, 1]
-                    found, n_found = append_row(found, n_found, row)
+        hits, n_hits, found, n_found, stack, leaves, tri = frame_test(
+            ps, poses[f], f, static, pairs, margin, still, stamp, world, sweep_order, previous_keys, previous_tris,
+            collect_pairs, first_only, scratch, stack, leaves, tri, hit, hits, n_hits, row, found, n_found, counts)
         if first_only:
             previous_keys, previous_tris = _frame_keys(hits, frame_hits, n_hits, n_objects)
     return hits[:n_hits].copy(), found[:n_found].copy(), counts

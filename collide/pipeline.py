@@ -137,14 +137,21 @@ CHUNK_SECONDS = 0.02
 #: chunk then only paces the progress display (0.02 s chunks cost 3-8 % of a continuous
 #: scan of 100 bodies or of 10 000 frames)
 CHUNK_SECONDS_ONE_WORKER = 0.1
+#: items of a one-worker scan's first chunk (untimed) at least: a short scan then makes one
+#: kernel call, not two (a call of the step scan costs 0.1-0.3 ms on its own on two 100k-
+#: triangle meshes, and the chunk's first frame test as much again)
+FIRST_CHUNK_ONE_WORKER = 64
 
 
 def _chunk_size(n_items, workers, max_size, seconds_per_item):
-    """Items in the next chunk of range(n_items): about 1/8 of a worker's share, or more
-    when items are cheap (CHUNK_SECONDS, or CHUNK_SECONDS_ONE_WORKER, at
-    seconds_per_item, once measured); at most max_size (None: no limit)."""
+    """Items in the next chunk of range(n_items): about 1/8 of a worker's share (one
+    worker's first: at least FIRST_CHUNK_ONE_WORKER), or more when items are cheap
+    (CHUNK_SECONDS, or CHUNK_SECONDS_ONE_WORKER, at seconds_per_item, once measured); at
+    most max_size (None: no limit)."""
     size = -(-n_items // (8 * workers))
-    if seconds_per_item is not None:
+    if seconds_per_item is None and workers == 1:
+        size = max(size, FIRST_CHUNK_ONE_WORKER)
+    elif seconds_per_item is not None:
         seconds = CHUNK_SECONDS if workers > 1 else CHUNK_SECONDS_ONE_WORKER
         size = max(size, int(seconds / max(seconds_per_item, 1e-9)))
     return max(1, size if max_size is None else min(max_size, size))
@@ -437,17 +444,19 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
 
 
 def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, time_tol, dist_tol, one_sided_leaves):
-    """The chunk of _run_steps for steps [start, stop): the frame test of frame start,
-    then scan_intervals finding the other frames' contacts itself. Returns (hits of
-    frames (start if start == 0, else start + 1) to min(stop, n_frames - 1), ids,
-    fractions, counts)."""
-    first, _, first_counts = scan_frames(ps, poses, static, pairs, start, start + 1, False, True)
-    touching, tris = frame_contacts(first, static, poses.shape[1])
-    hits, ids, fractions, counts = scan_intervals(ps, poses, static, pairs, touching, tris, start, stop, True,
+    """The chunk of _run_steps for steps [start, stop): scan_intervals running the frame
+    tests itself, frame start's first. Returns (hits of frames (start if start == 0,
+    else start + 1: the chunk before reports frame start) to min(stop, n_frames - 1),
+    ids, fractions, counts)."""
+    hits, ids, fractions, counts = scan_intervals(ps, poses, static, pairs, _NO_KEYS, _NO_TRIS, start, stop, True,
                                                   interpolation, time_tol, dist_tol, one_sided_leaves)
-    if start == 0:
-        hits = np.concatenate([first, hits])
-    return hits[hits[:, HIT_FRAME] < n_frames], ids, fractions, first_counts + counts
+    frame = hits[:, HIT_FRAME]
+    return hits[(frame < n_frames) & ((frame > start) | (start == 0))], ids, fractions, counts
+
+
+#: scan_intervals' ``touching`` and ``touching_tris`` when it runs the frame tests itself
+_NO_KEYS = np.zeros(0, np.int64)
+_NO_TRIS = np.zeros((0, 2), np.int64)
 
 
 def _frame_shift(offset):

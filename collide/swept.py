@@ -78,6 +78,7 @@ from .discrete import (
     _placed,
     _still_touching,
     append_hit,
+    frame_test,
     key_row,
     object_margins,
     object_world_boxes,
@@ -120,6 +121,7 @@ from .rows import (
     COUNT_SUBSTEPS,
     COUNT_WIDTH,
     HIT_WIDTH,
+    PAIR_WIDTH,
     SWEPT_A,
     SWEPT_B,
     SWEPT_STEP,
@@ -594,9 +596,9 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     object pairs the frame tests found touching, touching_tris int64 (H, 2) a
     triangle pair of each (a pair touching at both frames of a step touches over the
     whole step: no search; at one frame: only the other end is searched);
-    find_frames: touching holds frame step_start only, and the kernel runs the frame
-    tests of frames step_start + 1 to step_stop itself, each with the step that ends
-    there (a pair whose swept test finds nothing cannot touch at the step's last
+    find_frames: touching is not read; the kernel runs the frame tests of frames
+    step_start (when there are steps) to step_stop itself, each but the first with the
+    step that ends there (a pair whose swept test finds nothing cannot touch at the step's last
     frame; one that needs a swept search gets its frame test from the swept leaf
     pairs, without a descent of its own); interpolation: a motion.INTERPOLATIONS code;
     time_tol in units of the step; dist_tol in length units; one_sided_leaves:
@@ -626,9 +628,19 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     id_row = np.empty(SWEPT_WIDTH, np.int64)
     time_row = np.empty(TIMES_WIDTH)
     rule = RULE_SWEPT_RIGID if interpolation == SCREW else RULE_SWEPT
-    keys0, tris0 = _frame_contacts(touching, touching_tris, step_start, n_objects)
-    keys1, tris1 = keys0, tris0
     sweep_order = np.arange(n_objects)  # sweep_and_prune's, carried from step to step
+    if find_frames and step_stop > step_start:  # frame step_start's test; the others come with their steps
+        stack, leaves, frame_pairs = buffers.stack, buffers.leaves, buffers.frame_pairs
+        hits, n_hits, _, _, stack, leaves, frame_pairs = frame_test(
+            ps, poses[step_start], step_start, static, pairs, state.frame.margin, state.frame.still, state.frame.stamp,
+            state.frame.world, sweep_order, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), np.bool_(False),
+            np.bool_(True), state.pair, stack, leaves, frame_pairs, hit, hits, n_hits, np.empty(PAIR_WIDTH, np.int64),
+            np.empty((0, PAIR_WIDTH), np.int64), np.int64(0), counts)
+        buffers = Buffers(stack, leaves, buffers.tri_pairs, frame_pairs)
+        keys0, tris0 = _frame_keys(hits, 0, n_hits, n_objects)
+    else:
+        keys0, tris0 = _frame_contacts(touching, touching_tris, step_start, n_objects)
+    keys1, tris1 = keys0, tris0
     for k in range(step_start, step_stop):
         rp0 = poses[k]
         rp1 = poses[k + 1]

@@ -27,6 +27,29 @@ def scene(tmp_path, boxes, mover, z_or_pos, times):
     return meshes, traj
 
 
+def test_a_short_one_worker_scan_is_one_kernel_call_that_tests_its_first_frame(tmp_path, monkeypatch):
+    """Each kernel call costs a little on its own (its buffers, pages of the meshes' size):
+    a short scan with one worker makes one call of the step kernel, which runs the frame
+    tests itself, the first frame's included, and none of the frame kernel."""
+    from collide import pipeline
+    calls = {"scan_intervals": 0, "scan_frames": 0}
+    for name in calls:
+        def counted(*args, kernel=getattr(pipeline, name), name=name):
+            calls[name] += 1
+            return kernel(*args)
+        monkeypatch.setattr(pipeline, name, counted)
+    z = np.linspace(-1.0, 1.0, 40)
+    meshes, traj = scene(tmp_path, {"plate": ((10, 10, 0.125), (0, 0, 0)), "cube": ((0.25,) * 3, (0, 0, 0))},
+                         "cube", [[0, 0, v] for v in z], np.arange(40.0))
+    c = collide.scan(meshes, traj, workers=1).contacts
+    calls_made = dict(calls)
+    # the cube touches the plate while |z| <= 3/16: frames 17 to 22 (z = -0.18 ... 0.18)
+    touching = np.flatnonzero(np.abs(z) <= 3 / 16)
+    assert c["frame_begin"].tolist() == [touching[0] - 1] and c["frame_end"].tolist() == [touching[-1]]
+    assert calls_made["scan_intervals"] == 2  # the kernels' compile (or cache load) call, then the scan's
+    assert calls_made["scan_frames"] == 1  # the compile call only
+
+
 def check_interval(c, k, begin, end, dt, time_tol=config.TIME_TOL):
     tol = time_tol * dt
     assert c["t_begin"][k] <= begin <= c["t_begin"][k] + tol, (c["t_begin"][k], begin)

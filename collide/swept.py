@@ -24,10 +24,11 @@ step touches from its start to its end (the step's window runs from the
 earliest to the latest contact), so it is not searched; a pair touching at one
 frame is searched for the other end only. Either the frame tests
 (discrete.scan_frames) have run before and say which pairs touch, or
-(``find_frames``) the kernel runs them itself, at each step's last frame, as
-part of the step: a pair touching at the step's first frame is tested as
-scan_frames would (the triangle pair that touched there first, then a descent
-to the first intersecting pair); any other pair is tested only if its swept
+(``find_frames``) the kernel runs them itself: its first frame's as scan_frames
+does (discrete.frame_test), then each step's last frame's as part of the step:
+a pair touching at the step's first frame is tested as scan_frames would (the
+triangle pair that touched there first, then a descent to the first
+intersecting pair); any other pair is tested only if its swept
 test gets as far as leaf pairs, and then on those leaf pairs (they hold every
 leaf pair overlapping at the last frame), not by a descent of its own; and not
 at all if no triangle pair's moving boxes come near each other over the step

@@ -227,6 +227,8 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     if scheduler is not None:
         yield from _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler)
         return
+    if n_items <= 1:
+        workers = 1  # nothing to share out (a scan's one contact): no thread to start
     ahead = 2 * workers if workers > 1 else 1
     items_done, seconds_done = 0, 0.0
     with ThreadPoolExecutor(max_workers=workers) if workers > 1 else _InThisThread() as pool:

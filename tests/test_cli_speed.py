@@ -286,3 +286,22 @@ def test_the_program_skips_numba_s_blas_probe(two_boxes, tmp_path):
         assert probed["t_begin"].size > 0
         for column in probed:
             np.testing.assert_array_equal(written[column], probed[column])
+
+
+def test_a_single_item_runs_in_the_calling_thread_and_more_are_shared_out(monkeypatch):
+    """Starting worker threads costs 0.2-0.5 ms: a run of one item (a scan's one contact,
+    through the smallest-pair search and the contact points) calls its kernel in the
+    calling thread whatever --workers says; two items with two workers use the threads."""
+    import threading
+
+    from collide import pipeline
+    threads = []
+
+    def kernel(start, stop):
+        threads.append(threading.current_thread())
+        return stop - start
+    assert pipeline._run_chunks(kernel, (), (), 1, 2, None) == [1]
+    assert threads == [threading.current_thread()]
+    threads.clear()
+    assert sum(pipeline._run_chunks(kernel, (), (), 2, 2, None)) == 2
+    assert threads and threading.current_thread() not in threads

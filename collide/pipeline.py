@@ -143,17 +143,21 @@ CHUNK_SECONDS_ONE_WORKER = 0.1
 FIRST_CHUNK_ONE_WORKER = 64
 
 
-def _chunk_size(n_items, workers, max_size, seconds_per_item):
+def _chunk_size(n_items, workers, max_size, seconds_per_item, left=None):
     """Items in the next chunk of range(n_items): about 1/8 of a worker's share (one
     worker's first: at least FIRST_CHUNK_ONE_WORKER), or more when items are cheap
-    (CHUNK_SECONDS, or CHUNK_SECONDS_ONE_WORKER, at seconds_per_item, once measured); at
-    most max_size (None: no limit)."""
+    (CHUNK_SECONDS, or CHUNK_SECONDS_ONE_WORKER, at seconds_per_item, once measured), but
+    with several workers at most an equal share of the ``left`` items not yet finished
+    (the last chunks then run side by side, not one alone); at most max_size (None: no
+    limit)."""
     size = -(-n_items // (8 * workers))
     if seconds_per_item is None and workers == 1:
         size = max(size, FIRST_CHUNK_ONE_WORKER)
     elif seconds_per_item is not None:
         seconds = CHUNK_SECONDS if workers > 1 else CHUNK_SECONDS_ONE_WORKER
         size = max(size, int(seconds / max(seconds_per_item, 1e-9)))
+        if workers > 1 and left is not None:
+            size = min(size, -(-left // workers))
     return max(1, size if max_size is None else min(max_size, size))
 
 
@@ -236,9 +240,10 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
         start = 0
         try:
             while start < n_items or pending:
-                while start < n_items and len(pending) < ahead:
+                # before any chunk is timed, one per worker: a short scan then makes fewer calls
+                while start < n_items and len(pending) < (ahead if items_done else workers):
                     rate = seconds_done / items_done if items_done else None
-                    stop = min(n_items, start + _chunk_size(n_items, workers, max_size, rate))
+                    stop = min(n_items, start + _chunk_size(n_items, workers, max_size, rate, n_items - items_done))
                     pending.append(((start, stop), pool.submit(_timed_call, kernel, shared, start, stop, extra)))
                     start = stop
                 (chunk_start, chunk_stop), future = pending.popleft()

@@ -305,3 +305,16 @@ def test_a_single_item_runs_in_the_calling_thread_and_more_are_shared_out(monkey
     threads.clear()
     assert sum(pipeline._run_chunks(kernel, (), (), 2, 2, None)) == 2
     assert threads and threading.current_thread() not in threads
+
+
+def test_with_two_workers_the_last_chunks_share_what_is_left(monkeypatch):
+    """Chunk sizes follow the measured cost per item (here a fake 1 µs, so a chunk of
+    CHUNK_SECONDS would hold more items than the run has): one probe per worker first,
+    then what is not finished is split between the workers instead of going to one
+    chunk that runs alone."""
+    from collide import pipeline
+    monkeypatch.setattr(pipeline, "_timed_call",
+                        lambda kernel, shared, start, stop, extra: (1e-6 * (stop - start), (start, stop)))
+    chunks = pipeline._run_chunks(None, (), (), 2000, 2, None)
+    assert [start for start, _ in chunks] == [0] + [stop for _, stop in chunks[:-1]] and chunks[-1][1] == 2000
+    assert [stop - start for start, stop in chunks] == [125, 125, 938, 812]

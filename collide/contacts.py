@@ -10,6 +10,7 @@ from .rows import (
     HIT_A,
     HIT_B,
     HIT_FRAME,
+    HIT_SMALLEST,
     HIT_TRI_A,
     HIT_TRI_B,
     HIT_WIDTH,
@@ -61,8 +62,8 @@ def sort_columns(columns, keys):
 class Where(NamedTuple):
     """Each contact's first moment (for its point) and where its triangle pair came from."""
     step: np.ndarray      #: int64 (E,) frame (discrete) or step (continuous) index
-    u: np.ndarray         #: float64 (E,) fraction of the step (0: the frame itself)
-    from_hit: np.ndarray  #: bool (E,) (tri_a, tri_b) came from a frame hit
+    u: np.ndarray            #: float64 (E,) fraction of the step (0: the frame itself)
+    first_found: np.ndarray  #: bool (E,) (tri_a, tri_b) is a frame hit's pair, maybe not the smallest
 
 
 def _contact_columns(a, b, t_begin, t_end, kind, tri_a, tri_b, times):
@@ -90,8 +91,8 @@ def intervals_from_hits(hits, times):
     times float64 (T,) analysed frame times.
     Returns (columns, where): contact columns sorted by (object_a, object_b, t_begin),
     one row per maximal run of consecutive frames of one object pair (points NaN, for
-    the caller to fill), and a Where: the contact's first frame (u = 0), its
-    (tri_a, tri_b) from a frame hit.
+    the caller to fill), and a Where: the contact's first frame (u = 0), whether its
+    (tri_a, tri_b) may be the first found rather than the smallest (HIT_SMALLEST).
     """
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
     hits = hits[np.lexsort((hits[:, HIT_FRAME], _pair_key(hits[:, HIT_A], hits[:, HIT_B])))]
@@ -102,7 +103,7 @@ def intervals_from_hits(hits, times):
     last = np.append(first[1:] - 1, hits.shape[0] - 1) if first.size else first
     columns = _contact_columns(a[first], b[first], times[frame[first]], times[frame[last]],
                                np.full(first.size, KIND_FRAME), hits[first, HIT_TRI_A], hits[first, HIT_TRI_B], times)
-    return columns, Where(frame[first], np.zeros(first.size), np.ones(first.size, bool))
+    return columns, Where(frame[first], np.zeros(first.size), hits[first, HIT_SMALLEST] == 0)
 
 
 def step_time(times, step, u, direction):
@@ -142,11 +143,12 @@ def intervals_from_steps(ids, fractions, hits, times):
     tri_a = np.concatenate([ids[:, SWEPT_TRI_A], hits[:, HIT_TRI_A]])
     tri_b = np.concatenate([ids[:, SWEPT_TRI_B], hits[:, HIT_TRI_B]])
     is_frame = np.concatenate([np.zeros(ids.shape[0], bool), np.ones(hits.shape[0], bool)])
+    first_found = np.concatenate([np.zeros(ids.shape[0], bool), hits[:, HIT_SMALLEST] == 0])
     step = np.concatenate([ids[:, SWEPT_STEP], hits[:, HIT_FRAME]])
     u = np.concatenate([fractions[:, T_BEGIN], np.zeros(hits.shape[0])])
     order = merge_order(a, b, t0, is_frame, tri_a, tri_b)
-    a, b, t0, t1, tri_a, tri_b, is_frame, step, u = (x[order] for x in (a, b, t0, t1, tri_a, tri_b, is_frame,
-                                                                        step, u))
+    a, b, t0, t1, tri_a, tri_b, is_frame, first_found, step, u = (
+        x[order] for x in (a, b, t0, t1, tri_a, tri_b, is_frame, first_found, step, u))
     new_pair = _new_pair(a, b)
     reach = _running_max_by_group(t1, np.flatnonzero(new_pair))   # latest end so far within each pair
     starts = new_pair.copy()
@@ -156,7 +158,7 @@ def intervals_from_steps(ids, fractions, hits, times):
     seen_at_frame = np.logical_or.reduceat(is_frame, first) if first.size else np.zeros(0, bool)
     kind = np.where(seen_at_frame, KIND_FRAME, KIND_SWEPT)
     columns = _contact_columns(a[first], b[first], t0[first], t_end, kind, tri_a[first], tri_b[first], times)
-    return columns, Where(step[first], u[first], is_frame[first])
+    return columns, Where(step[first], u[first], first_found[first])
 
 
 def merge_order(a, b, t0, is_frame, tri_a, tri_b):

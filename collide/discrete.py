@@ -66,6 +66,7 @@ from .rows import (
     HIT_B,
     HIT_FRAME,
     HIT_PAIRS,
+    HIT_SMALLEST,
     HIT_TRI_A,
     HIT_TRI_B,
     HIT_WIDTH,
@@ -275,27 +276,31 @@ def _frame_keys(hits, start, stop, n_objects):
 
 
 @njit(cache=True)
-def append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b):
+def append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b, smallest):
     """Append the hit row (frame f, objects a and b, n_tri triangle pairs, one of them
-    (tri_a, tri_b)) to hits (H, HIT_WIDTH), grown when full, through the scratch row
-    hit (HIT_WIDTH,). Returns (hits, n_hits)."""
+    (tri_a, tri_b), the smallest when ``smallest``) to hits (H, HIT_WIDTH), grown when
+    full, through the scratch row hit (HIT_WIDTH,). Returns (hits, n_hits)."""
     hit[HIT_FRAME] = f
     hit[HIT_A] = a
     hit[HIT_B] = b
     hit[HIT_PAIRS] = n_tri
     hit[HIT_TRI_A] = tri_a
     hit[HIT_TRI_B] = tri_b
+    hit[HIT_SMALLEST] = 1 if smallest else 0
     return append_row(hits, n_hits, hit)
 
 
 @njit(cache=True, inline="always")  # part of its callers (scan_frames, swept.scan_intervals)
 def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_order, previous_keys, previous_tris,
-               collect_pairs, first_only, scratch, stack, leaves, tri, hit, hits, n_hits, row, found, n_found, counts):
+               collect_pairs, first_only, smallest, scratch, stack, leaves, tri, hit, hits, n_hits, row, found,
+               n_found, counts):
     """The frame test of frame f (poses rp (N, 3, 4)): the touching object pairs appended to
     hits (n_hits rows used) and, when collect_pairs, their intersecting triangle pairs to
     found. previous_keys, previous_tris: the previous frame's hits (_frame_keys; empty
-    unless first_only), whose triangle pair is tried first. margin (N,) is filled here;
-    still: zero motion rows; stamp, world: the lazily placed vertices; sweep_order:
+    unless first_only), whose triangle pair is tried first. With ``smallest`` each hit
+    names the smallest intersecting triangle pair (_smallest_pair_of, from the vertices
+    the test placed), not the first found. margin (N,) is filled here; still: zero
+    motion rows; stamp, world: the lazily placed vertices; sweep_order:
     sweep_and_prune's, carried from frame to frame. Returns (hits, n_hits, found,
     n_found, stack, leaves, tri) (buffers grown when full)."""
     n_objects = rp.shape[0]
@@ -320,7 +325,13 @@ def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_orde
         if n_tri == 0:
             continue
         tri_a, tri_b = _smallest_pair(tri, n_tri)
-        hits, n_hits = append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b)
+        known = collect_pairs  # all pairs found: the smallest of them is the smallest
+        if smallest and not collect_pairs:
+            _, small_a, small_b = _smallest_pair_of(ps, rp, f, a, b, margin[a] + margin[b], static, stamp, world,
+                                                    np.empty((64, 4), np.int64), counts)
+            if small_a >= 0:  # it always finds one: the same triangle test says they touch
+                tri_a, tri_b, known = small_a, small_b, True
+        hits, n_hits = append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b, known)
         if collect_pairs:
             for k in range(n_tri):
                 row[PAIR_FRAME] = f
@@ -364,7 +375,8 @@ def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs
         frame_hits = n_hits
         hits, n_hits, found, n_found, stack, leaves, tri = frame_test(
             ps, poses[f], f, static, pairs, margin, still, stamp, world, sweep_order, previous_keys, previous_tris,
-            collect_pairs, first_only, scratch, stack, leaves, tri, hit, hits, n_hits, row, found, n_found, counts)
+            collect_pairs, first_only, np.bool_(False), scratch, stack, leaves, tri, hit, hits, n_hits, row, found,
+            n_found, counts)
         if first_only:
             previous_keys, previous_tris = _frame_keys(hits, frame_hits, n_hits, n_objects)
     return hits[:n_hits].copy(), found[:n_found].copy(), counts

@@ -479,13 +479,13 @@ def _total_counts(counts):
 
 
 def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
-    """Set each contact's (tri_a, tri_b) that came from a frame hit to the smallest
-    intersecting pair at that frame (hits found without collecting pairs hold the
-    first pair found, which depends on the BVH and the chunks): a branch-and-bound
-    search (discrete.smallest_touching_pairs) per such contact, in ``workers`` threads.
-    poses: PoseSource (read a block of those frames at a time)."""
-    steps, _, from_hit = where
-    rows = np.flatnonzero(from_hit)
+    """Set each contact's (tri_a, tri_b) that came from a frame hit holding the first pair
+    found (Where.first_found: hits found without collecting pairs, which depends on
+    the BVH and the chunks) to the smallest intersecting pair at that frame: a
+    branch-and-bound search (discrete.smallest_touching_pairs) per such contact, in
+    ``workers`` threads. poses: PoseSource (read a block of those frames at a time)."""
+    steps, _, first_found = where
+    rows = np.flatnonzero(first_found)
     rows = rows[np.argsort(steps[rows], kind="stable")]  # by frame: a frame's contacts share its placed vertices
     frames = steps[rows]
     unique_frames = np.unique(frames)

@@ -18,7 +18,8 @@ HIT_B = 2          #: object_b
 HIT_PAIRS = 3      #: intersecting triangle pairs found (1 when the search stopped at the first)
 HIT_TRI_A = 4      #: a touching triangle pair: the smallest (or the first found)
 HIT_TRI_B = 5
-HIT_WIDTH = 6
+HIT_SMALLEST = 6   #: 1 when (tri_a, tri_b) is known to be the smallest, 0 when it may be the first found
+HIT_WIDTH = 7
 
 # triangle pairs
 PAIR_FRAME = 0

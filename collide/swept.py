@@ -52,7 +52,8 @@ boxes: the first sub-step (in time) with a contact gives t_first, the last
 one t_last.
 
 Output (layouts in rows.py): hits int64 (H, HIT_WIDTH), the frame contacts found
-with ``find_frames`` (as scan_frames' first_only hits); ids int64 (R,
+with ``find_frames`` (as scan_frames' first_only hits, but naming the smallest pair at
+a chunk's frame 0, see scan_intervals); ids int64 (R,
 SWEPT_WIDTH): step k, object_a, object_b, tri_a, tri_b (the pair touching first);
 times float64 (R, TIMES_WIDTH): t_begin, t_end, fractions of the step.
 """
@@ -605,7 +606,9 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     time_tol in units of the step; dist_tol in length units; one_sided_leaves:
     config.ONE_SIDED_LEAVES (how large a search of one end of a contact reads its leaf
     pairs in time order; only affects speed). Returns (hits int64 (H,
-    HIT_WIDTH), the frame tests' hits (first pair found; none without find_frames),
+    HIT_WIDTH), the frame tests' hits (none without find_frames; the first pair
+    found, but the smallest at frame 0 when step_start is 0: a contact that begins
+    there reports it without a search of its own, HIT_SMALLEST),
     ids int64 (R, SWEPT_WIDTH), times float64 (R, TIMES_WIDTH), counts int64
     (COUNT_WIDTH,)), see the module docstring.
     """
@@ -635,8 +638,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         hits, n_hits, _, _, stack, leaves, frame_pairs = frame_test(
             ps, poses[step_start], step_start, static, pairs, state.frame.margin, state.frame.still, state.frame.stamp,
             state.frame.world, sweep_order, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), np.bool_(False),
-            np.bool_(True), state.pair, stack, leaves, frame_pairs, hit, hits, n_hits, np.empty(PAIR_WIDTH, np.int64),
-            np.empty((0, PAIR_WIDTH), np.int64), np.int64(0), counts)
+            np.bool_(True), np.bool_(step_start == 0), state.pair, stack, leaves, frame_pairs, hit, hits, n_hits,
+            np.empty(PAIR_WIDTH, np.int64), np.empty((0, PAIR_WIDTH), np.int64), np.int64(0), counts)
         buffers = Buffers(stack, leaves, buffers.tri_pairs, frame_pairs)
         keys0, tris0 = _frame_keys(hits, 0, n_hits, n_objects)
     else:
@@ -691,7 +694,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 elif t_first < np.inf:
                     tri_a, tri_b = tris0[row0, 0], tris0[row0, 1]
             if hit_a >= 0:
-                hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, np.int64(1), hit_a, hit_b)
+                hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, np.int64(1), hit_a, hit_b, np.bool_(False))
             if t_first == np.inf:
                 continue
             id_row[SWEPT_STEP] = k

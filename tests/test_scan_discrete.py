@@ -214,6 +214,68 @@ def test_smallest_touching_pair_equals_the_smallest_of_all_pairs(seed):
             assert tuple(got) == expected, (leaf_size, f, a, b)
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_step_scan_names_the_smallest_pair_at_its_first_frame(seed, monkeypatch):
+    """A continuous chunk that starts at frame 0 reports, for each pair touching there,
+    the smallest intersecting triangle pair (every pair enumerated by scan_frames as the
+    reference) and marks it so (HIT_SMALLEST); other frames' hits, and those of a chunk
+    starting later, keep the first pair found, unmarked. A scan whose contacts all begin
+    at frame 0 then searches no smallest pair afterwards."""
+    import trimesh
+
+    from collide import config, pipeline
+    from collide.discrete import scan_frames
+    from collide.filters import build_filters
+    from collide.load import Mesh
+    from collide.motion import INTERPOLATIONS
+    from collide.packed import pack_scene
+    from collide.rows import HIT_A, HIT_B, HIT_FRAME, HIT_SMALLEST, HIT_TRI_A, HIT_TRI_B, PAIR_A, PAIR_B, PAIR_FRAME
+    from collide.swept import scan_intervals
+    rng = np.random.default_rng(seed)
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    box = trimesh.creation.box(extents=(1.5, 0.4, 0.4))
+    meshes = [Mesh(name, None, np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
+              for name, m in (("sphere", sphere), ("box", box))]
+    poses = np.zeros((3, 3, 3, 4))
+    for o in range(3):  # deeply overlapping at frame 0, then a small drift
+        q = rng.normal(size=4)
+        poses[:, o, :, :3] = quaternion_rotation(q / np.linalg.norm(q))
+        poses[:, o, :, 3] = rng.uniform(-0.6, 0.6, size=3) + np.outer(np.arange(3), rng.uniform(-0.05, 0.05, 3))
+    static, pairs = np.zeros(3, bool), build_filters(["a", "b", "c"]).kernel_filter()
+    ps, _ = pack_scene(meshes, np.array([0, 0, 1]), leaf_size=4)
+    _, every, _ = scan_frames(ps, poses, static, pairs, 0, 3, True, False)
+    no_keys, no_tris = np.zeros(0, np.int64), np.zeros((0, 2), np.int64)
+    for start in (0, 1):
+        hits = scan_intervals(ps, poses, static, pairs, no_keys, no_tris, start, 2, True, INTERPOLATIONS["screw"],
+                              config.TIME_TOL, 1e-9, config.ONE_SIDED_LEAVES)[0]
+        assert (hits[:, HIT_FRAME] == start).any()
+        for f, a, b, tri_a, tri_b, smallest in hits[:, [HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_SMALLEST]]:
+            at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]
+            assert (tri_a, tri_b) in set(map(tuple, at[:, 3:5].tolist()))  # touching there
+            assert smallest == (f == 0)
+            if f == 0:
+                assert (tri_a, tri_b) == min(map(tuple, at[:, 3:5].tolist()))
+    searched = []
+    original = pipeline.smallest_touching_pairs
+
+    def counting(ps, poses, static, rows, wanted, start, stop):
+        searched.append(stop - start)
+        return original(ps, poses, static, rows, wanted, start, stop)
+    monkeypatch.setattr(pipeline, "smallest_touching_pairs", counting)
+    frame_0 = {(int(a), int(b)): min(map(tuple, every[(every[:, PAIR_FRAME] == 0) & (every[:, PAIR_A] == a)
+                                                    & (every[:, PAIR_B] == b)][:, 3:5].tolist()))
+               for a, b in {tuple(r) for r in every[every[:, PAIR_FRAME] == 0][:, 1:3].tolist()}}
+    result = collide.scan({m.name: (m.vertices, m.faces) for m in meshes},
+                          {"time": [0.0, 1.0, 2.0], "names": ["a", "b", "c"], "mesh": ["sphere", "sphere", "box"],
+                                   "matrix": np.concatenate([poses, np.tile([0, 0, 0, 1.0], (3, 3, 1, 1))], axis=2)},
+                          mode="continuous", workers=1, leaf_size=4)
+    c = result.contacts
+    begins_at_0 = c["t_begin"] == 0.0
+    assert begins_at_0.any() and sum(searched) == int((~begins_at_0 & (c["kind"] == 0)).sum())
+    for k in np.flatnonzero(begins_at_0):
+        assert (c["tri_a"][k], c["tri_b"][k]) == frame_0[(c["object_a"][k], c["object_b"][k])]
+
+
 @pytest.mark.parametrize("n_rows", [1, 1023, 1024, 1025, 5000])
 def test_lazy_stamps_answer_like_stamps_set_to_minus_one_up_front(n_rows):
     """narrow.new_stamps / stamp_is (the world buffers' stamps, set a block at a time on

@@ -16,9 +16,10 @@ touching region has only moved a little.
 Output rows (int64, layouts in rows.py):
 - hits (H, HIT_WIDTH): frame, object_a, object_b, number of intersecting
   triangle pairs, tri_a, tri_b (the lexicographically smallest intersecting
-  pair). With ``first_only`` a pair's search stops at its first intersecting
-  triangle pair: the count is then 1 and (tri_a, tri_b) that pair (which one
-  depends on the frames before it in the chunk).
+  pair), and 1 (the pair is known to be the smallest). With ``first_only`` a
+  pair's search stops at its first intersecting triangle pair: the count is then
+  1, (tri_a, tri_b) that pair (which one depends on the frames before it in the
+  chunk) and the last column 0.
 - pairs (P, PAIR_WIDTH): frame, object_a, object_b, tri_a, tri_b (only when
   collected).
 - counts (COUNT_WIDTH,): work done (rows.COUNT_*).
@@ -297,9 +298,11 @@ def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_orde
     """The frame test of frame f (poses rp (N, 3, 4)): the touching object pairs appended to
     hits (n_hits rows used) and, when collect_pairs, their intersecting triangle pairs to
     found. previous_keys, previous_tris: the previous frame's hits (_frame_keys; empty
-    unless first_only), whose triangle pair is tried first. With ``smallest`` each hit
-    names the smallest intersecting triangle pair (_smallest_pair_of, from the vertices
-    the test placed), not the first found. margin (N,) is filled here; still: zero
+    unless first_only), whose triangle pair is tried first. With ``smallest`` (and not
+    collect_pairs) each hit names the smallest intersecting triangle pair
+    (_smallest_pair_of, from the vertices the test placed; its work is not counted, as
+    that of smallest_touching_pairs is not), not the first found, and says so
+    (HIT_SMALLEST). margin (N,) is filled here; still: zero
     motion rows; stamp, world: the lazily placed vertices; sweep_order:
     sweep_and_prune's, carried from frame to frame. Returns (hits, n_hits, found,
     n_found, stack, leaves, tri) (buffers grown when full)."""
@@ -328,7 +331,7 @@ def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_orde
         known = collect_pairs  # all pairs found: the smallest of them is the smallest
         if smallest and not collect_pairs:
             _, small_a, small_b = _smallest_pair_of(ps, rp, f, a, b, margin[a] + margin[b], static, stamp, world,
-                                                    np.empty((64, 4), np.int64), counts)
+                                                    np.empty((64, 4), np.int64), np.zeros(COUNT_WIDTH, np.int64))
             if small_a >= 0:  # it always finds one: the same triangle test says they touch
                 tri_a, tri_b, known = small_a, small_b, True
         hits, n_hits = append_hit(hits, n_hits, hit, f, a, b, n_tri, tri_a, tri_b, known)

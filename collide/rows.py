@@ -1,7 +1,7 @@
 """Layouts of the rows the scan kernels hand back to Python, by column name.
 
 - Frame hits, int64 (H, HIT_WIDTH): one row per object pair in contact at a frame
-  (discrete.scan_frames).
+  (discrete.scan_frames, and swept.scan_intervals when it runs the frame tests).
 - Triangle pairs, int64 (P, PAIR_WIDTH): one row per intersecting triangle pair at a
   frame (discrete.scan_frames, with --triangle-pairs).
 - Swept contacts, one row per object pair and motion step in which they touch

@@ -25,7 +25,9 @@ earliest to the latest contact), so it is not searched; a pair touching at one
 frame is searched for the other end only. Either the frame tests
 (discrete.scan_frames) have run before and say which pairs touch, or
 (``find_frames``) the kernel runs them itself: its first frame's as scan_frames
-does (discrete.frame_test), then each step's last frame's as part of the step:
+does (discrete.frame_test; at frame 0 naming each touching pair's smallest
+triangle pair, which a contact beginning there reports), then each step's last
+frame's as part of the step:
 a pair touching at the step's first frame is tested as scan_frames would (the
 triangle pair that touched there first, then a descent to the first
 intersecting pair); any other pair is tested only if its swept
@@ -641,6 +643,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             np.bool_(True), np.bool_(step_start == 0), state.pair, stack, leaves, frame_pairs, hit, hits, n_hits,
             np.empty(PAIR_WIDTH, np.int64), np.empty((0, PAIR_WIDTH), np.int64), np.int64(0), counts)
         buffers = Buffers(stack, leaves, buffers.tri_pairs, frame_pairs)
+        # (at frame 0 the smallest pairs: a row of a pair touching from the step's start
+        # names one, sorted after the frame hit that starts the same contact)
         keys0, tris0 = _frame_keys(hits, 0, n_hits, n_objects)
     else:
         keys0, tris0 = _frame_contacts(touching, touching_tris, step_start, n_objects)

@@ -219,8 +219,8 @@ def test_step_scan_names_the_smallest_pair_at_its_first_frame(seed, monkeypatch)
     """A continuous chunk that starts at frame 0 reports, for each pair touching there,
     the smallest intersecting triangle pair (every pair enumerated by scan_frames as the
     reference) and marks it so (HIT_SMALLEST); other frames' hits, and those of a chunk
-    starting later, keep the first pair found, unmarked. A scan whose contacts all begin
-    at frame 0 then searches no smallest pair afterwards."""
+    starting later, keep the first pair found, unmarked. A scan then leaves no contact
+    beginning at frame 0 to the search for smallest pairs after it."""
     import trimesh
 
     from collide import config, pipeline
@@ -256,12 +256,12 @@ def test_step_scan_names_the_smallest_pair_at_its_first_frame(seed, monkeypatch)
             if f == 0:
                 assert (tri_a, tri_b) == min(map(tuple, at[:, 3:5].tolist()))
     searched = []
-    original = pipeline.smallest_touching_pairs
+    original = pipeline.smallest_pairs_at_frames
 
-    def counting(ps, poses, static, rows, wanted, start, stop):
-        searched.append(stop - start)
-        return original(ps, poses, static, rows, wanted, start, stop)
-    monkeypatch.setattr(pipeline, "smallest_touching_pairs", counting)
+    def recording(contacts, where, *args):
+        searched.append(where)
+        return original(contacts, where, *args)
+    monkeypatch.setattr(pipeline, "smallest_pairs_at_frames", recording)
     frame_0 = {(int(a), int(b)): min(map(tuple, every[(every[:, PAIR_FRAME] == 0) & (every[:, PAIR_A] == a)
                                                     & (every[:, PAIR_B] == b)][:, 3:5].tolist()))
                for a, b in {tuple(r) for r in every[every[:, PAIR_FRAME] == 0][:, 1:3].tolist()}}
@@ -271,7 +271,8 @@ def test_step_scan_names_the_smallest_pair_at_its_first_frame(seed, monkeypatch)
                           mode="continuous", workers=1, leaf_size=4)
     c = result.contacts
     begins_at_0 = c["t_begin"] == 0.0
-    assert begins_at_0.any() and sum(searched) == int((~begins_at_0 & (c["kind"] == 0)).sum())
+    (steps, u, first_found), = searched
+    assert begins_at_0.any() and not (first_found & (steps == 0)).any()  # nothing left to search at frame 0
     for k in np.flatnonzero(begins_at_0):
         assert (c["tri_a"][k], c["tri_b"][k]) == frame_0[(c["object_a"][k], c["object_b"][k])]
 

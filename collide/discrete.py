@@ -299,13 +299,12 @@ def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_orde
     hits (n_hits rows used) and, when collect_pairs, their intersecting triangle pairs to
     found. previous_keys, previous_tris: the previous frame's hits (_frame_keys; empty
     unless first_only), whose triangle pair is tried first. With ``smallest`` (and not
-    collect_pairs) each hit names the smallest intersecting triangle pair
-    (_smallest_pair_of, from the vertices the test placed; its work is not counted, as
-    that of smallest_touching_pairs is not), not the first found, and says so
-    (HIT_SMALLEST). margin (N,) is filled here; still: zero
-    motion rows; stamp, world: the lazily placed vertices; sweep_order:
-    sweep_and_prune's, carried from frame to frame. Returns (hits, n_hits, found,
-    n_found, stack, leaves, tri) (buffers grown when full)."""
+    collect_pairs) each hit names the smallest intersecting triangle pair, not the first
+    found, and says so (HIT_SMALLEST): _smallest_pair_of, from the vertices the test
+    placed (its work is not counted, as that of smallest_touching_pairs is not).
+    margin (N,) is filled here; still: zero motion rows; stamp, world: the lazily placed
+    vertices; sweep_order: sweep_and_prune's, carried from frame to frame. Returns
+    (hits, n_hits, found, n_found, stack, leaves, tri) (buffers grown when full)."""
     n_objects = rp.shape[0]
     object_margins(ps, rp, rp, margin)
     lo, hi = object_world_boxes(ps, rp, rp, still, 0.0, margin)

@@ -96,6 +96,14 @@ def check_output_path(path, inputs=()):
     return target
 
 
+def check_not_an_input(path, inputs):
+    """Raise InputError if ``path`` exists and is one of ``inputs`` (check_output_path's
+    identity test alone, for files written into a folder the caller has checked)."""
+    target = output_target(path)
+    if os.path.lexists(target):
+        _check_not_an_input(path, target, inputs)
+
+
 def _check_not_an_input(path, target, inputs):
     for source in inputs:
         try:

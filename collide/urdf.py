@@ -36,7 +36,7 @@ import numpy as np
 from .errors import InputError, UsageError
 from .files import open_hdf5
 from .load import _numeric, _read_float, _read_strings, _Source, _strings, load_mesh
-from .output import atomic_path, check_output_path
+from .output import atomic_path, check_not_an_input, check_output_path
 
 log = logging.getLogger("collide")
 
@@ -107,13 +107,16 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
     if geometry not in GEOMETRY_KINDS:
         raise UsageError(f"unknown geometry {geometry!r}; expected one of {', '.join(GEOMETRY_KINDS)}")
     _yourdfpy()
-    check_output_path(trajectory_out)
+    inputs = [urdf_path] + ([joints] if isinstance(joints, (str, os.PathLike)) else [])
+    check_output_path(trajectory_out, inputs)
     _check_meshes_folder(Path(meshes_out), force)
 
     robot = load_robot(urdf_path)
     motion = read_joints(joints)
     columns, ignored, at_zero = _movable_columns(robot, motion)
-    meshes, fallback = link_meshes(robot, urdf_path, geometry)
+    meshes, fallback = link_meshes(robot, urdf_path, geometry, sources=inputs)
+    # nothing written may replace a file read: the URDF, the joints, a mesh it names
+    check_output_path(trajectory_out, inputs)
     _warn_joints(motion.source, ignored, at_zero)
     links = list(meshes)
     poses = link_poses(robot, {motion.names[j]: motion.position[:, j] for j in columns},
@@ -121,6 +124,8 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
     ignore = adjacent_pairs(robot, links) if ignore_adjacent else None
 
     stems = mesh_file_stems(links)
+    for stem in stems:
+        check_not_an_input(Path(meshes_out) / f"{stem}{MESH_SUFFIX}", inputs)
     staged = _stage_meshes(Path(meshes_out), {stem: meshes[link] for stem, link in zip(stems, links)})
     try:
         with atomic_path(trajectory_out) as tmp:
@@ -413,7 +418,8 @@ def _check_time(time, source, dataset, row):
     steps = np.diff(time)
     if (steps <= 0).any():
         k = int(np.argmax(steps <= 0)) + 1
-        raise InputError(source, f"not strictly increasing at {row(k)} ({time[k - 1]!r} then {time[k]!r})",
+        before, after = float(time[k - 1]), float(time[k])
+        raise InputError(source, f"not strictly increasing at {row(k)} ({before!r} then {after!r})",
                          "strictly increasing times", dataset=dataset)
 
 
@@ -464,12 +470,13 @@ def _warn_joints(source, ignored, at_zero):
 
 # --- 3. link meshes --------------------------------------------------------------------------------
 
-def link_meshes(robot, urdf_path, geometry="collision"):
+def link_meshes(robot, urdf_path, geometry="collision", sources=None):
     """Each link's geometry as one triangle mesh in the link frame.
 
     A link's elements of the chosen kind ("collision" or "visual"; the other kind when the
     link has none) are merged in file order, each with its <origin> (and a mesh's
-    ``scale``) applied. Links without geometry are left out.
+    ``scale``) applied. Links without geometry are left out. sources: a list that the
+    paths of the mesh files read are appended to (None: not recorded).
 
     Returns ({link name: (vertices float64 (V, 3), faces int64 (F, 3))} in URDF link
     order, [links that used the other kind]).
@@ -488,7 +495,7 @@ def link_meshes(robot, urdf_path, geometry="collision"):
         if attribute == other:
             fallback.append(link.name)
         kind = attribute[:-1]
-        parts = [_element_mesh(e, resolve, path, f"link {link.name!r} <{kind}>") for e in elements]
+        parts = [_element_mesh(e, resolve, path, f"link {link.name!r} <{kind}>", sources) for e in elements]
         meshes[link.name] = _merge(parts)
     if not meshes:
         raise InputError(path, "no link has <collision> or <visual> geometry",
@@ -500,9 +507,9 @@ def link_meshes(robot, urdf_path, geometry="collision"):
     return meshes, fallback
 
 
-def _element_mesh(element, resolve, urdf_path, where):
+def _element_mesh(element, resolve, urdf_path, where, sources):
     """One <collision>/<visual> element -> (vertices float64 (V, 3), faces int64 (F, 3)) in the
-    link frame."""
+    link frame; a mesh file read is appended to sources (unless None)."""
     import trimesh
     g = element.geometry
     if g.box is not None:
@@ -516,7 +523,7 @@ def _element_mesh(element, resolve, urdf_path, where):
         (radius,) = _positive([g.sphere.radius], (1,), urdf_path, f"{where} sphere radius")
         mesh = trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=radius)
     elif g.mesh is not None:
-        vertices, faces = _referenced_mesh(g.mesh, resolve, urdf_path, where)
+        vertices, faces = _referenced_mesh(g.mesh, resolve, urdf_path, where, sources)
         mesh = None
     else:
         raise InputError(urdf_path, f"{where} has an empty <geometry>", "a box, cylinder, sphere or mesh")
@@ -536,8 +543,9 @@ def _positive(values, shape, urdf_path, what):
     return array
 
 
-def _referenced_mesh(mesh, resolve, urdf_path, where):
-    """Load a <mesh filename=... scale=...> element's file and scale it (origin not applied)."""
+def _referenced_mesh(mesh, resolve, urdf_path, where, sources):
+    """Load a <mesh filename=... scale=...> element's file and scale it (origin not applied);
+    its path is appended to sources (unless None)."""
     if not mesh.filename:
         raise InputError(urdf_path, f"{where} <mesh> has no filename", "<mesh filename=\"...\">")
     with _yourdfpy_quiet():
@@ -547,6 +555,8 @@ def _referenced_mesh(mesh, resolve, urdf_path, where):
                          "the file at that path relative to the URDF's folder (package://NAME/ is "
                          "looked up in that folder and its parents)")
     loaded = load_mesh(found)
+    if sources is not None:
+        sources.append(found)
     scale = np.float64(1.0) if mesh.scale is None else np.asarray(mesh.scale, dtype=np.float64)
     if scale.shape not in ((), (1,), (3,)) or not np.isfinite(scale).all():
         raise InputError(urdf_path, f"{where} mesh scale {np.atleast_1d(scale).tolist()}",

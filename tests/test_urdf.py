@@ -410,7 +410,7 @@ def _break(case, robot, tmp_path):
         return robot, csv, "bad.csv: no 'time' column"
     if case == "csv time not increasing":
         csv.write_text("time,j_shoulder\n0,0\n0.2,0\n0.1,0\n")
-        return robot, csv, "bad.csv:time: not strictly increasing at line 4"
+        return robot, csv, "bad.csv:time: not strictly increasing at line 4 (0.2 then 0.1)"
     if case == "csv nan":
         csv.write_text("time,j_shoulder\n0,0\n0.1,nan\n")
         return robot, csv, "bad.csv:j_shoulder: line 3: nan; expected finite numbers"
@@ -457,6 +457,33 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(case, robot, tmp_path):
     assert "Traceback" not in proc.stderr and "SPEC" not in proc.stderr
     assert not out.exists() and not meshes.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize("written", ["trajectory over the joints", "trajectory over the urdf",
+                                     "trajectory over a mesh it names", "link mesh over a mesh it names"])
+def test_nothing_written_replaces_an_input(written, robot, tmp_path):
+    joints = write_csv(tmp_path / "j.csv", [0.0, 0.1], {"j_shoulder": [0.0, 0.1]})
+    part = robot.parent / "meshes" / "part.stl"
+    before = {p: p.read_bytes() for p in (joints, robot, part)}
+    out, meshes, extra = tmp_path / "t.h5", tmp_path / "m", ()
+    if written == "trajectory over the joints":
+        out = tmp_path / "." / "j.csv"
+    elif written == "trajectory over the urdf":
+        out = robot
+    elif written == "trajectory over a mesh it names":
+        out = part
+    else:  # the slider link's mesh would go to meshes/slider.ply: the file the URDF names for it
+        trimesh.Trimesh(PART, PART_FACES, process=False).export(robot.parent / "meshes" / "slider.ply")
+        robot.write_text(urdf_text().replace("meshes/part.stl", "meshes/slider.ply", 1))
+        part = robot.parent / "meshes" / "slider.ply"
+        before = {p: p.read_bytes() for p in (joints, robot, part)}
+        meshes, extra = robot.parent / "meshes", ("--force",)
+    proc = run_cli("urdf", robot, joints, "-o", out, "--meshes-out", meshes, *extra)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    line, = [x for x in proc.stderr.splitlines() if x.startswith("collide: error: ")]  # (and a warning)
+    assert "is an input of this command" in line and "; expected " in line, line
+    assert {p: p.read_bytes() for p in before} == before
+    assert not (tmp_path / "t.h5").exists()
 
 
 def test_bad_in_memory_joints_raise_input_error(robot, tmp_path):

@@ -3,6 +3,7 @@
 Every problem raises ``InputError(file, problem, expected, dataset)`` before
 any work starts, so a bad input never costs a long run or a broken output.
 """
+import contextlib
 import errno
 import fnmatch
 import io
@@ -11,6 +12,7 @@ import logging
 import os
 import re
 import stat
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 from typing import NamedTuple
@@ -208,7 +210,8 @@ def _loader_message(exc, path):
 
 
 def load_mesh(path):
-    """Load one mesh file as triangles, faces exactly as the file lists them.
+    """Load one mesh file as triangles, faces exactly as the file lists them: triangle i
+    is the file's i-th face, polygons fanned from their first corner in turn.
 
     Multi-part files (scenes) are merged in order. Raises InputError for
     files that are not regular files, unreadable files, no triangles, non-finite
@@ -216,15 +219,85 @@ def load_mesh(path):
     """
     import trimesh
     path = Path(path)
+    file_type = path.suffix.lstrip(".").lower()
     with open_regular(path, "a readable mesh file") as file_obj:
         try:
-            loaded = trimesh.load(file_obj, file_type=path.suffix.lstrip(".").lower(), process=False,
-                                  force="mesh", resolver=_mesh_resolver(path.parent))
+            if file_type == "obj":
+                file_obj = _without_materials(file_obj)
+            with _polygons_fanned_in_order():
+                loaded = trimesh.load(file_obj, file_type=file_type, process=False, force="mesh",
+                                      resolver=_mesh_resolver(path.parent))
         except Exception as exc:  # trimesh raises many exception types for bad files
             raise InputError(path, f"cannot load mesh ({_loader_message(exc, path)})", MESH_FILE) from None
     vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))))
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))
     return _checked_mesh(path.stem, path, vertices, faces, path)
+
+
+#: a ``usemtl`` line of an OBJ file
+_USEMTL = re.compile(rb"(?m)^[ \t]*usemtl\b[^\r\n]*")
+
+
+def _without_materials(file_obj):
+    """An OBJ file's bytes without its ``usemtl`` lines, as a file object. trimesh splits an
+    OBJ's faces into one part per material and merges the parts in another order than the
+    file's; materials do not matter here, so the faces stay one part, in file order."""
+    data = file_obj.read()
+    return io.BytesIO(_USEMTL.sub(b"", data) if b"usemtl" in data else data)
+
+
+@contextlib.contextmanager
+def _polygons_fanned_in_order():
+    """While trimesh reads a file here: its PLY and OFF readers triangulate faces with
+    fans_in_order instead of trimesh's own triangulate_quads, which puts the triangles
+    first, then the quads' first halves, then their second halves, then other polygons
+    (and fails on polygons of more than four corners read from OFF text)."""
+    from trimesh.exchange import off, ply
+    with _TRIMESH_PATCH:
+        saved = off.triangulate_quads, ply.triangulate_quads
+        off.triangulate_quads = ply.triangulate_quads = fans_in_order
+        try:
+            yield
+        finally:
+            off.triangulate_quads, ply.triangulate_quads = saved
+
+
+_TRIMESH_PATCH = threading.Lock()
+
+
+def fans_in_order(polygons, dtype=np.int64, use_fan=True):
+    """int64 (m, 3) triangles of polygons (a sequence of vertex index sequences, numbers or
+    numeric text) in their order, each fanned from its first corner: polygon (c0, c1, ...,
+    ck) gives (c0, c1, c2), (c0, c2, c3), ..., (c0, ck-1, ck). Polygons of fewer than
+    three corners give none. (dtype and use_fan: triangulate_quads' parameters, ignored.)"""
+    try:
+        same = np.array(polygons, dtype=np.int64)  # one size: no Python loop over faces
+    except (ValueError, TypeError):
+        same = None
+    if same is not None and same.ndim == 2:
+        return _fans(same)
+    rows = [np.asarray(p, dtype=np.int64).reshape(-1) for p in polygons]
+    sizes = np.array([r.shape[0] for r in rows], dtype=np.int64)
+    counts = np.maximum(sizes - 2, 0)
+    out = np.empty((int(counts.sum()), 3), np.int64)
+    first = np.cumsum(counts) - counts  # each polygon's first triangle row
+    for size in np.unique(sizes[sizes >= 3]):
+        which = np.flatnonzero(sizes == size)
+        rows_of = first[which][:, None] + np.arange(size - 2)
+        out[rows_of.reshape(-1)] = _fans(np.stack([rows[i] for i in which]))
+    return out
+
+
+def _fans(polygons):
+    """fans_in_order of int64 (n, k) polygons of one size k."""
+    n, k = polygons.shape
+    if k < 3:
+        return np.zeros((0, 3), np.int64)
+    out = np.empty((n, k - 2, 3), np.int64)
+    out[:, :, 0] = polygons[:, :1]
+    out[:, :, 1] = polygons[:, 1:-1]
+    out[:, :, 2] = polygons[:, 2:]
+    return out.reshape(-1, 3)
 
 
 def _checked_mesh(name, path, vertices, faces, where):

@@ -67,7 +67,7 @@ CACHE_FORMAT = 1
 
 #: Behaviour of ``collide.load.load_mesh``. Bump whenever load_mesh (or what it
 #: asks of trimesh) changes the arrays it returns for some file.
-LOADER_VERSION = 1
+LOADER_VERSION = 2  # 2: faces in file order (OBJ with materials; PLY and OFF polygons)
 
 #: Behaviour of ``collide.bvh.build_mesh_bvh``. Bump whenever the builder can
 #: return a different tree for the same arrays and options.

@@ -450,13 +450,19 @@ def _print_summary(result, output, fmt):
 @memory_option
 @verbosity_options
 def validate(trajectory, meshes, allow_external_data, max_memory):
-    """Check TRAJECTORY (and the MESHES folder, if given) as scan would; change nothing."""
+    """Check TRAJECTORY (and the MESHES folder, if given) as scan reads them; change nothing.
+
+    With MESHES, the trajectory's filters/ignore patterns are matched against the objects
+    too. How far objects turn between frames is checked by scan, since it depends on
+    its --mode and --interpolation."""
+    from collide.filters import build_filters
     from collide.load import check_trajectory, load_scene
     if meshes is None:
         traj = check_trajectory(trajectory, allow_external=allow_external_data, max_memory=max_memory)
         click.echo(f"ok: {trajectory}: {traj.time.shape[0]} frames, {len(traj.names)} objects")
         return
     scene = load_scene(meshes, trajectory, allow_external=allow_external_data, max_memory=max_memory)
+    build_filters(scene.names, trajectory_ignore=scene.ignore, trajectory_path=scene.trajectory_path)
     n_static = int(scene.static.sum())
     triangles = sum(m.faces.shape[0] for m in scene.meshes)
     click.echo(f"ok: {trajectory}: {scene.time.shape[0]} frames, {len(scene.names)} objects "

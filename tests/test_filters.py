@@ -138,6 +138,9 @@ def test_trajectory_filters_travel_with_the_motion_and_the_command_line_adds(cha
     proc = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete")
     assert proc.returncode == 2 and "filters/ignore" in proc.stderr and "lnk_*" in proc.stderr
     assert len(proc.stderr.splitlines()) == 1
+    # and validate, which reads the inputs as scan does, says the same
+    checked = run_cli("validate", traj, meshes)
+    assert checked.returncode == 2 and checked.stderr == proc.stderr and checked.stdout == ""
 
 
 def test_unmatched_pattern_on_the_command_line_exits_2(chain, tmp_path):

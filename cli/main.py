@@ -39,6 +39,9 @@ if _AS_PROGRAM:
     # collector would go through again and again while they are made: 0.1-0.2 s of a scan.
     # It runs again, leaving them out, once the engine is imported (_engine_imported).
     gc.disable()
+    # numba colours its error messages through colorama when installed, which then writes a
+    # colour reset to standard output at exit (into pipes that a terminal records): no colours
+    os.environ.setdefault("NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING", "1")
 
 import json  # noqa: E402
 import logging  # noqa: E402
@@ -347,8 +350,8 @@ def cli():
               help=f"Max triangles per BVH leaf [default: {config.DEFAULT_LEAF_SIZE}].")
 @click.option("--triangle-pairs", is_flag=True, help="Also write every intersecting triangle pair "
                                                     "at every frame (/triangle_pairs).")
-@click.option("--frames", default=None, metavar="START:STOP",
-              help="Analyse a frame range (Python slice); only its frames are read.")
+@click.option("--frames", default=None, metavar="START:STOP[:STEP]",
+              help="Analyse a frame range (Python slice, positive step); only its frames are read.")
 @click.option("--fail-on-contact", is_flag=True, help="Exit 1 if any contact is found (for CI).")
 @click.option("--workers", type=click.IntRange(min=1, max=config.MAX_WORKERS), default=None,
               help="Local parallelism (threads) [default: all cores].")
@@ -582,8 +585,8 @@ def diff(baseline, contacts, time_tol, ignore_filters, max_memory):
     after = collide.read_contacts(contacts, max_memory=max_memory)
     if not ignore_filters and scan_filters(before) != scan_filters(after):
         raise collide.UsageError(f"{contacts} was scanned with pair filters {scan_filters(after)} but {baseline} "
-                                 f"with {scan_filters(before)}: they checked different object pairs (pass "
-                                 "--ignore-filters to compare them anyway)")
+                                 f"with {scan_filters(before)}: they checked different object pairs; expected "
+                                 "files scanned with the same filters (or --ignore-filters to compare them anyway)")
     differences = diff_contacts(before, after, time_tol)
     if not differences:
         click.echo(f"same contacts ({baseline} vs {contacts}, time tolerance {time_tol:g})")
@@ -779,6 +782,10 @@ def _error(text):
     click.echo(escape_text(text), err=True)
 
 
+#: click's error for a command line without a command (click 8.2 on; older click prints help)
+_NO_COMMAND = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
 def _run(argv):
     """Run the command line; returns the exit code."""
     _state["verbosity"] = 0  # -v/-q count per run (main may be called several times)
@@ -787,6 +794,10 @@ def _run(argv):
         cli.main(args=argv, prog_name="collide", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
+    except _NO_COMMAND as exc:  # no command at all: say which there are
+        names = ", ".join(exc.ctx.command.list_commands(exc.ctx)) if exc.ctx is not None else "a command"
+        _error(f"collide: error: no command given; expected one of {names} (see 'collide --help')")
+        return EXIT_BAD_INPUT
     except click.UsageError as exc:  # bad command line: one line, exit 2
         command = exc.ctx.command_path if exc.ctx is not None else "collide"
         message = " ".join(exc.format_message().split()).rstrip(".")

@@ -146,8 +146,8 @@ def build_filters(names, ignore=(), only=(), trajectory_ignore=(), trajectory_pa
 
     def from_option(option):
         def fail(pattern, glob):
-            raise UsageError(f"{option} {pattern[0]}:{pattern[1]}: {glob!r} matches no object "
-                             f"(objects: {known})")
+            raise UsageError(f"{option} {pattern[0]}:{pattern[1]}: {glob!r} matches no object; "
+                             f"expected globs matching object names ({known})")
         return fail
 
     traj = [parse_pattern_pair(p, "filters/ignore") for p in trajectory_ignore]

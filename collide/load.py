@@ -231,7 +231,23 @@ def load_mesh(path):
             raise InputError(path, f"cannot load mesh ({_loader_message(exc, path)})", MESH_FILE) from None
     vertices = np.asarray(getattr(loaded, "vertices", np.empty((0, 3))))
     faces = np.asarray(getattr(loaded, "faces", np.empty((0, 3))))
+    if file_type == "stl" and faces.size == 0:
+        _check_binary_stl_size(path)  # trimesh reads a cut-off binary STL as an empty mesh
     return _checked_mesh(path.stem, path, vertices, faces, path)
+
+
+def _check_binary_stl_size(path):
+    """InputError if ``path`` is a binary STL whose size differs from what its header's
+    triangle count needs (84 + 50 bytes per triangle): a file cut off, or padded."""
+    with open_regular(path, "a readable mesh file") as f:
+        head = f.read(84)
+        size = os.fstat(f.fileno()).st_size
+    if len(head) < 84 or head.lstrip().lower().startswith(b"solid"):
+        return  # too short for a binary STL's header, or ASCII: trimesh's reading stands
+    count = int.from_bytes(head[80:84], "little")
+    if count > 0 and size != 84 + 50 * count:
+        raise InputError(path, f"binary STL header counts {count} triangles ({84 + 50 * count} bytes) but the "
+                         f"file has {size} bytes (cut off?)", "a complete STL file")
 
 
 #: a ``usemtl`` line of an OBJ file
@@ -502,16 +518,21 @@ def select_frames(frames, n_frames):
     if isinstance(frames, str):
         parts = frames.split(":")
         if len(parts) not in (2, 3):
-            raise UsageError(f"--frames {frames!r}: expected START:STOP (Python slice, e.g. 0:100 or -50:)")
+            raise UsageError(f"--frames {frames!r}: not a slice; expected START:STOP[:STEP] (Python slice, "
+                             "e.g. 0:100, -50: or ::2)")
         try:
             frames = slice(*(int(p) if p.strip() else None for p in parts))
         except ValueError:
-            raise UsageError(f"--frames {frames!r}: expected integers in START:STOP") from None
+            raise UsageError(f"--frames {frames!r}: not integers; expected integers in START:STOP[:STEP]") \
+                from None
+    parts = (frames.start, frames.stop) + (() if frames.step is None else (frames.step,))
+    text = ":".join("" if v is None else str(v) for v in parts)
     if frames.step is not None and frames.step <= 0:
-        raise UsageError("frames: the step must be positive")
+        raise UsageError(f"--frames {text}: the step is {frames.step}; expected a positive step")
     index = range(n_frames)[frames]
     if len(index) == 0:
-        raise UsageError(f"frames {frames.start}:{frames.stop} selects no frame of the {n_frames} in the trajectory")
+        raise UsageError(f"--frames {text} selects no frame of the {n_frames} in the trajectory; expected "
+                         f"a slice of frames 0 to {n_frames - 1} holding at least one (e.g. 0:{n_frames} or -10:)")
     return index
 
 

@@ -548,7 +548,9 @@ def read_contacts(path, max_memory=None):
 def _read_contacts(h5, path, limit):
     attrs = {k: (v.decode(errors="replace") if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
     if attrs.get("collide_format") != FORMAT_NAME:
-        raise _bad(path, "not a collide contacts file (attribute collide_format is missing)")
+        found = attrs.get("collide_format")
+        why = "is missing" if found is None else f"is {escape_text(str(found)[:40])!r}, not {FORMAT_NAME!r}"
+        raise _bad(path, f"not a collide contacts file (attribute collide_format {why})")
     if str(attrs.get("format_version")) != str(FORMAT_VERSION):
         raise _bad(path, f"unsupported format_version {attrs.get('format_version')}")
     names = {key: _dataset(h5, path, key) for key in ("objects/name", "objects/mesh", "objects/triangles",

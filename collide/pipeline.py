@@ -330,7 +330,8 @@ def _run_chunks_dask(kernel, shared, extra, n_items, progress, scheduler):
     try:
         client = Client(scheduler, timeout="10s", set_as_default=False)
     except (OSError, TimeoutError) as exc:
-        raise UsageError(f"cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
+        raise UsageError(f"cannot reach the Dask scheduler at {scheduler!r} ({exc}); expected the address of "
+                         "a running scheduler, e.g. tcp://host:8786") from None
     with client:
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
         chunks = _chunks(n_items, 2 * n_workers)
@@ -871,13 +872,13 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     frame_time = scene.time[index]
     continuous = mode == "continuous"
     cache_stats = timings.pop("cache")
-    if scene.unlisted:  # once the inputs are known to be good: errors stay one line
-        log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s", len(scene.unlisted),
-                "es" if len(scene.unlisted) > 1 else "", "their" if len(scene.unlisted) > 1 else "its",
-                ", ".join(scene.unlisted))
     with ExitStack() as stack:
         # with an output file, triangle pairs stream into it as frames finish
         h5 = stack.enter_context(atomic_hdf5(output, inputs, defer_signals=False)) if output is not None else None
+        if scene.unlisted:  # once the inputs are good and the output is open: errors stay one line
+            log.log(NOTE, "%d mesh%s not in the trajectory, static at %s mesh coordinates: %s",
+                    len(scene.unlisted), "es" if len(scene.unlisted) > 1 else "",
+                    "their" if len(scene.unlisted) > 1 else "its", ", ".join(scene.unlisted))
         pair_sink = None
         if triangle_pairs:
             pair_sink = TrianglePairs(TrianglePairWriter(h5) if h5 is not None else None)

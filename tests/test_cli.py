@@ -123,7 +123,9 @@ def test_text_summary_and_fail_on_contact(two_boxes, tmp_path):
 def test_usage_errors_exit_2(two_boxes, tmp_path):
     meshes, traj = two_boxes
     for args in (["scan", meshes, traj, "--split", "middle"], ["scan", meshes, traj, "--frames", "5:2"],
-                 ["scan", meshes, traj, "--frames", "x"], ["scan", meshes], ["frobnicate"],
+                 ["scan", meshes, traj, "--frames", "x"], ["scan", meshes], ["frobnicate"], [],
+                 ["scan", meshes, traj, "--frames", "::-1"], ["scan", meshes, traj, "--frames", "99999:"],
+                 ["scan", meshes, traj, "--ignore", "nosuch:fixed"],
                  ["scan", meshes, traj, "-o", tmp_path / "no" / "such" / "dir.h5", "--mode", "discrete"],
                  ["scan", meshes, traj, "-o", tmp_path, "--mode", "discrete"]):
         proc = run_cli(*args)
@@ -131,6 +133,9 @@ def test_usage_errors_exit_2(two_boxes, tmp_path):
         assert "Traceback" not in proc.stderr
         lines = proc.stderr.splitlines()
         assert len(lines) == 1 and lines[0].startswith("collide: error: "), (args, proc.stderr)
+        # what is wrong, then what is expected (or where the command line is described)
+        assert "; expected " in lines[0] or "; see 'collide" in lines[0], (args, lines[0])
+        assert "None" not in lines[0] and "np." not in lines[0], lines[0]
 
 
 def test_validate_and_inspect(two_boxes):
@@ -248,3 +253,29 @@ def test_large_rotation_between_frames_warns_once(tmp_path):
     assert "length units" in warnings[0]
     quiet = run_cli("scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", "discrete")
     assert "turns" not in quiet.stderr and "depart" not in quiet.stderr
+
+
+@pytest.mark.parametrize("mode", ["discrete", "continuous"])
+def test_no_colour_codes_on_a_terminal(two_boxes, tmp_path, mode):
+    """Standard output on a terminal holds the summary and nothing else (numba would have
+    colorama write a colour reset there at exit)."""
+    import pty
+    meshes, traj = two_boxes
+    master, slave = pty.openpty()
+    try:
+        proc = subprocess.run(["collide", "scan", meshes, traj, "-o", tmp_path / "c.h5", "--mode", mode],
+                              stdout=slave, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    finally:
+        os.close(slave)
+    out = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # the terminal's other end is closed: all read
+            break
+        if not chunk:
+            break
+        out += chunk
+    os.close(master)
+    assert proc.returncode == 0
+    assert b"contact intervals" in out and b"\x1b" not in out, out

@@ -2,9 +2,11 @@
 turn), whatever the format: results name triangles by these indices."""
 import numpy as np
 import pytest
+import trimesh
 from conftest import identity_quaternions, write_box, write_trajectory
 
 import collide
+from collide.errors import InputError
 from collide.load import fans_in_order, load_mesh
 
 # faces of every size, mixed, each polygon a flat fan around its first corner; the sizes
@@ -124,3 +126,15 @@ def test_contacts_name_the_file_face_that_touches(suffix, tmp_path):
         tri = int(contacts["tri_a"][row])
         assert fan_of[tri] == frame, (suffix, frame, tri)
         assert abs(triangles[tri][:, 2] - frame).max() == 0.0
+
+
+def test_a_cut_off_binary_stl_says_so(tmp_path):
+    data = trimesh.creation.box().export(file_type="stl")  # 12 triangles: 84 + 12 * 50 bytes
+    assert len(data) == 684
+    path = tmp_path / "cut.stl"
+    path.write_bytes(data[:344])
+    with pytest.raises(InputError, match=r"cut.stl: binary STL header counts 12 triangles \(684 bytes\) but the "
+                                         r"file has 344 bytes \(cut off\?\); expected a complete STL file"):
+        load_mesh(path)
+    path.write_bytes(data)
+    assert load_mesh(path).faces.shape == (12, 3)

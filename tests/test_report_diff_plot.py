@@ -84,6 +84,22 @@ def test_report_into_closed_pipe_is_quiet(scene):
         assert proc.stdout.strip() == "0"
 
 
+@pytest.mark.parametrize("value, why", [(None, "is missing"), ("other", "is 'other', not 'contacts'")])
+def test_a_file_of_another_format_is_named_so(scene, tmp_path, value, why):
+    _, _, out, _ = scene
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(out.read_bytes())
+    with h5py.File(bad, "r+") as f:
+        if value is None:
+            del f.attrs["collide_format"]
+        else:
+            f.attrs["collide_format"] = value
+    proc = run_cli("report", bad)
+    assert proc.returncode == 2 and proc.stderr == (
+        f"collide: error: {bad}: not a collide contacts file (attribute collide_format {why}); "
+        "expected a collide contacts file (from collide scan)\n"), proc.stderr
+
+
 def test_report_of_a_column_with_the_wrong_dtype_is_bad_input(scene, tmp_path):
     _, _, out, _ = scene
     bad = tmp_path / "bad.h5"

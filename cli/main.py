@@ -600,7 +600,7 @@ def diff(baseline, contacts, time_tol, ignore_filters, max_memory):
 @cli.command()
 @click.argument("contacts", type=PATH)
 @click.option("-o", "--output", default="timeline.png", show_default=True, type=PATH,
-              help="PNG file to write.")
+              help="Image file to write: .png, .pdf, .svg, .eps or .ps.")
 @click.option("--title", default=None, help="Plot title.")
 @click.option("--max-pairs", type=click.IntRange(min=1), default=config.PLOT_MAX_PAIRS, show_default=True,
               help="Draw at most this many object pairs (those that touch first).")

@@ -130,7 +130,10 @@ def mesh_files(folder, glob=None):
     for path in entries:
         if glob is not None and not fnmatch.fnmatchcase(path.name, glob):
             continue
-        if path.name.startswith(".") or path.suffix.lower() not in suffixes or not _is_mesh_entry(path):
+        if path.name.startswith("."):
+            log.info("%s: hidden file, ignored", escape_text(path))
+            continue
+        if path.suffix.lower() not in suffixes or not _is_mesh_entry(path):
             log.info("%s: not a mesh file, ignored", escape_text(path))
             continue
         if path.stem in found:

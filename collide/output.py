@@ -508,9 +508,13 @@ def _column_datasets(h5, path, group, layout):
     return datasets
 
 
-def _read_column(ds, dtype):
-    """A column converted to ``dtype``; integers that do not fit become -1 (out of range)."""
-    data = np.asarray(ds[()])
+def _read_column(path, ds, dtype):
+    """A column converted to ``dtype``; integers that do not fit become -1 (out of range).
+    A dataset that cannot be read (a corrupt chunk, say) is an InputError naming it."""
+    try:
+        data = np.asarray(ds[()])
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise _bad(path, f"cannot read ({str(exc)[:80]})", dataset=ds.name.lstrip("/")) from None
     wanted = np.dtype(dtype)
     if wanted.kind in "iu" and data.size:
         info = np.iinfo(wanted)
@@ -564,16 +568,18 @@ def _read_contacts(h5, path, limit):
     objects = {
         "name": [str(s) for s in names["objects/name"].asstr()[()]],
         "mesh": [str(s) for s in names["objects/mesh"].asstr()[()]],
-        "triangles": _read_column(names["objects/triangles"], np.int64),
+        "triangles": _read_column(path, names["objects/triangles"], np.int64),
     }
     provenance = {}
     group = hdf5_object(h5, path, "provenance")
     if group is not None:
         provenance = dict(group.attrs)
     frame_time = np.asarray(names["frames/time"][()], dtype=np.float64)
-    return ScanResult.from_file({k: _read_column(ds, CONTACT_COLUMNS[k]) for k, ds in contacts.items()}, objects,
+    return ScanResult.from_file({k: _read_column(path, ds, CONTACT_COLUMNS[k]) for k, ds in contacts.items()},
+                                objects,
                                 frame_time, _frame_index(h5, path, frame_time.shape),
-                                {k: _read_column(ds, TRIANGLE_PAIR_COLUMNS[k]) for k, ds in pairs.items()} or None,
+                                {k: _read_column(path, ds, TRIANGLE_PAIR_COLUMNS[k]) for k, ds in pairs.items()}
+                                or None,
                                 attrs, provenance)
 
 

@@ -39,13 +39,15 @@ def _check_drawable(cf, source):
 
 
 def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS, inputs=(), source="contacts"):
-    """Draw the contact intervals of a Contacts file to a PNG at ``output`` (atomically;
-    never over one of ``inputs``, e.g. the contacts file itself). ``source`` names the
-    contacts file in messages.
+    """Draw the contact intervals of a Contacts file to an image at ``output`` (atomically;
+    never over one of ``inputs``, e.g. the contacts file itself), in the format its suffix
+    names (IMAGE_FORMATS; PNG without a suffix). ``source`` names the contacts file in
+    messages.
 
     One row per object pair; with more than ``max_pairs`` pairs only the
     ``max_pairs`` that touch first are drawn (the title says so).
     """
+    image_format = _image_format(output)
     _check_drawable(cf, source)
     plt = _pyplot()
     from matplotlib.patches import Patch
@@ -88,8 +90,24 @@ def plot_timeline(cf, output, title=None, max_pairs=MAX_PAIRS, inputs=(), source
               loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     output = Path(output)
-    png = io.BytesIO()
-    fig.savefig(png, format="png")
+    image = io.BytesIO()
+    fig.savefig(image, format=image_format)
     plt.close(fig)
-    write_bytes_atomic(output, png.getbuffer(), inputs)
+    write_bytes_atomic(output, image.getbuffer(), inputs)
     return output
+
+
+#: image formats by file suffix (what matplotlib writes without extra packages)
+IMAGE_FORMATS = ("png", "pdf", "svg", "eps", "ps")
+
+
+def _image_format(output):
+    """The image format of ``output`` by its suffix: png when it has none; UsageError for a
+    suffix of another format."""
+    suffix = Path(output).suffix.lower().lstrip(".")
+    if not suffix:
+        return "png"
+    if suffix not in IMAGE_FORMATS:
+        raise UsageError(f"-o {output}: .{suffix} is not an image format written here; expected a file name "
+                         f"ending in {', '.join('.' + f for f in IMAGE_FORMATS)}")
+    return suffix

@@ -426,6 +426,22 @@ def test_corrupted_contacts_file_is_bad_input_for_every_reader(scanned, tmp_path
         assert_bad_input(run_cli(*command), f"collide: error: {bad}")
 
 
+@pytest.mark.parametrize("column", ["triangle_pairs/tri_b", "contacts/t_end"])
+def test_a_corrupt_data_chunk_is_bad_input_naming_its_dataset(scanned, tmp_path, column):
+    _, _, contacts = scanned
+    bad = tmp_path / "bad.h5"
+    shutil.copy(contacts, bad)
+    with h5py.File(bad, "r+") as f:  # the column again, compressed, so that garbage fails to inflate
+        data = f[column][()]
+        del f[column]
+        info = f.create_dataset(column, data=data, chunks=data.shape, compression="gzip").id.get_chunk_info(0)
+    raw = bytearray(bad.read_bytes())
+    raw[info.byte_offset + 2:info.byte_offset + info.size] = b"\x5a" * (info.size - 2)  # after zlib's header
+    bad.write_bytes(bytes(raw))
+    for command in (["report", bad], ["diff", contacts, bad], ["plot", bad, "-o", tmp_path / "t.png"]):
+        assert_bad_input(run_cli(*command), f"collide: error: {bad}:{column}: cannot read (")
+
+
 @pytest.mark.parametrize("column, value", [("triangle_pairs/tri_a", 10**6), ("triangle_pairs/object_b", -1),
                                            ("triangle_pairs/frame", 99), ("contacts/tri_b", -5)])
 def test_indices_out_of_range_are_bad_input_for_every_reader(scanned, tmp_path, column, value):

@@ -206,3 +206,23 @@ def test_plot_writes_png_with_bars(scene, tmp_path):
     few = tmp_path / "few.png"
     assert run_cli("plot", out, "-o", few, "--max-pairs", "1").returncode == 0
     assert imread(few).shape[0] < image.shape[0]  # fewer rows drawn
+
+
+@pytest.mark.parametrize("suffix, magic", [(".pdf", b"%PDF-"), (".svg", b"<?xml"), (".PNG", b"\x89PNG"),
+                                           ("", b"\x89PNG")])
+def test_plot_writes_the_format_its_file_name_says(scene, tmp_path, suffix, magic):
+    pytest.importorskip("matplotlib")
+    _, _, out, _ = scene
+    image = tmp_path / f"timeline{suffix}"
+    proc = run_cli("plot", out, "-o", image)
+    assert proc.returncode == 0, proc.stderr
+    assert image.read_bytes().startswith(magic)
+
+
+def test_plot_refuses_a_suffix_of_another_format(scene, tmp_path):
+    pytest.importorskip("matplotlib")
+    _, _, out, _ = scene
+    proc = run_cli("plot", out, "-o", tmp_path / "timeline.jpeg")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert ".jpeg is not an image format written here; expected a file name ending in .png, .pdf" in proc.stderr
+    assert not (tmp_path / "timeline.jpeg").exists()

@@ -110,16 +110,17 @@ def mesh_label(mesh):
     return mesh.name if mesh.path is None else mesh.path.name
 
 
-def _inputs(scene, trajectory, digests):
+def _inputs(scene, meshes_in, trajectory, digests):
     """Provenance of the inputs: paths (or "<in memory>") and sha256 of each (digests:
-    {path: sha256} already computed)."""
+    {path: sha256} already computed); meshes by file name, with the folder they are in."""
     if scene.trajectory_path == MEMORY_TRAJECTORY:
         traj = {"path": "<in memory>", "sha256": _arrays_sha256(scene.time, scene.poses.array)}
     else:
         traj = {"path": str(trajectory), "sha256": _sha256(scene.trajectory_path)}
     meshes = {mesh_label(m): _arrays_sha256(m.vertices, m.faces) if m.path is None
               else digests.get(m.path) or _sha256(m.path) for m in scene.meshes}
-    return {"trajectory": traj, "meshes": meshes}
+    folder = str(meshes_in) if isinstance(meshes_in, (str, os.PathLike)) else "<in memory>"
+    return {"trajectory": traj, "meshes_folder": folder, "meshes": meshes}
 
 
 def _chunks(n_items, workers, max_size=64):
@@ -933,7 +934,7 @@ def _result(scene, meshes, trajectory, mode, split, leaf_size, triangle_pairs, f
     result.provenance = {
         "command": command or _api_call(meshes, trajectory, mode),
         "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "inputs": _inputs(scene, trajectory, cache_stats["digests"]),
+        "inputs": _inputs(scene, meshes, trajectory, cache_stats["digests"]),
         "parameters": parameters,
         "versions": result.versions,
     }

@@ -40,6 +40,7 @@ def test_arrays_in_memory_give_the_same_contacts_as_files(mode):
     for name, column in from_files.contacts.items():
         np.testing.assert_array_equal(in_memory.contacts[name], column, err_msg=name)
     assert in_memory.provenance["inputs"]["trajectory"]["path"] == "<in memory>"
+    assert in_memory.provenance["inputs"]["meshes_folder"] == "<in memory>"
     # mixing a folder of meshes with a trajectory in memory works too
     mixed = collide.scan(FIXTURE / "meshes", trajectory, mode=mode)
     np.testing.assert_array_equal(mixed.contacts["t_begin"], from_files.contacts["t_begin"])

@@ -106,6 +106,7 @@ def test_scan_writes_spec_file_and_summary(two_boxes, tmp_path):
             assert key in f["provenance"].attrs
         inputs = json.loads(f["provenance"].attrs["inputs"])
         assert len(inputs["trajectory"]["sha256"]) == 64
+        assert inputs["meshes_folder"] == str(meshes) and set(inputs["meshes"]) == {"fixed.stl", "mover.obj"}
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
 
 

@@ -782,22 +782,19 @@ def _error(text):
     click.echo(escape_text(text), err=True)
 
 
-#: click's error for a command line without a command (click 8.2 on; older click prints help)
-_NO_COMMAND = getattr(click.exceptions, "NoArgsIsHelpError", ())
-
-
 def _run(argv):
     """Run the command line; returns the exit code."""
     _state["verbosity"] = 0  # -v/-q count per run (main may be called several times)
     _configure_logging()
+    if not (sys.argv[1:] if argv is None else argv) and "_COLLIDE_COMPLETE" not in os.environ:
+        # no command (and not shell completion asking): say which there are, whatever click's version does
+        _error(f"collide: error: no command given; expected one of {', '.join(cli.list_commands(None))} "
+               "(see 'collide --help')")
+        return EXIT_BAD_INPUT
     try:
         cli.main(args=argv, prog_name="collide", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
-    except _NO_COMMAND as exc:  # no command at all: say which there are
-        names = ", ".join(exc.ctx.command.list_commands(exc.ctx)) if exc.ctx is not None else "a command"
-        _error(f"collide: error: no command given; expected one of {names} (see 'collide --help')")
-        return EXIT_BAD_INPUT
     except click.UsageError as exc:  # bad command line: one line, exit 2
         command = exc.ctx.command_path if exc.ctx is not None else "collide"
         message = " ".join(exc.format_message().split()).rstrip(".")

@@ -7,6 +7,7 @@ import contextlib
 import errno
 import fnmatch
 import io
+import itertools
 import json
 import logging
 import os
@@ -214,7 +215,8 @@ def _loader_message(exc, path):
 
 def load_mesh(path):
     """Load one mesh file as triangles, faces exactly as the file lists them: triangle i
-    is the file's i-th face, polygons fanned from their first corner in turn.
+    is the file's i-th face, polygons fanned from their first corner in turn (trimesh's
+    OBJ reader turns a quad's second triangle round: (c2, c3, c0), the same triangle).
 
     Multi-part files (scenes) are merged in order. Raises InputError for
     files that are not regular files, unreadable files, no triangles, non-finite
@@ -241,44 +243,47 @@ def load_mesh(path):
 
 def _check_binary_stl_size(path):
     """InputError if ``path`` is a binary STL whose size differs from what its header's
-    triangle count needs (84 + 50 bytes per triangle): a file cut off, or padded."""
+    triangle count needs (84 + 50 bytes per triangle): a file cut off, or padded. ASCII
+    STL (starting with "solid" and holding "facet"; binary headers may start with "solid"
+    too) is left to trimesh's reading."""
     with open_regular(path, "a readable mesh file") as f:
-        head = f.read(84)
+        head = f.read(1024)
         size = os.fstat(f.fileno()).st_size
-    if len(head) < 84 or head.lstrip().lower().startswith(b"solid"):
-        return  # too short for a binary STL's header, or ASCII: trimesh's reading stands
+    if len(head) < 84 or (head.lstrip().lower().startswith(b"solid") and b"facet" in head.lower()):
+        return
     count = int.from_bytes(head[80:84], "little")
-    if count > 0 and size != 84 + 50 * count:
-        raise InputError(path, f"binary STL header counts {count} triangles ({84 + 50 * count} bytes) but the "
-                         f"file has {size} bytes (cut off?)", "a complete STL file")
-
-
-#: a ``usemtl`` line of an OBJ file
-_USEMTL = re.compile(rb"(?m)^[ \t]*usemtl\b[^\r\n]*")
+    expected = 84 + 50 * count
+    if count > 0 and size != expected:
+        how = "cut off?" if size < expected else f"{size - expected} bytes too many"
+        raise InputError(path, f"binary STL header counts {count} triangles ({expected} bytes) but the file has "
+                         f"{size} bytes ({how})", "a complete STL file")
 
 
 def _without_materials(file_obj):
-    """An OBJ file's bytes without its ``usemtl`` lines, as a file object. trimesh splits an
-    OBJ's faces into one part per material and merges the parts in another order than the
-    file's; materials do not matter here, so the faces stay one part, in file order."""
+    """An OBJ file's bytes with every ``usemtl`` made inert, as a file object. trimesh splits
+    an OBJ's faces into one part per material (at ``usemtl`` anywhere in the text, comments
+    and names included) and merges the parts in another order than the file's; materials
+    do not matter here, so the faces stay one part, in file order."""
     data = file_obj.read()
-    return io.BytesIO(_USEMTL.sub(b"", data) if b"usemtl" in data else data)
+    return io.BytesIO(data.replace(b"usemtl", b"#semtl") if b"usemtl" in data else data)
 
 
 @contextlib.contextmanager
 def _polygons_fanned_in_order():
-    """While trimesh reads a file here: its PLY and OFF readers triangulate faces with
-    fans_in_order instead of trimesh's own triangulate_quads, which puts the triangles
-    first, then the quads' first halves, then their second halves, then other polygons
-    (and fails on polygons of more than four corners read from OFF text)."""
+    """While trimesh reads a file here, it triangulates polygons with fans_in_order instead
+    of its own triangulate_quads (in its PLY and OFF readers and where a mesh's faces are
+    set), which puts the triangles first, then the quads' first halves, then their second
+    halves, then other polygons (and fails on polygons of more than four corners read
+    from OFF text). Restored afterwards, also when reading fails."""
+    from trimesh import geometry
     from trimesh.exchange import off, ply
     with _TRIMESH_PATCH:
-        saved = off.triangulate_quads, ply.triangulate_quads
-        off.triangulate_quads = ply.triangulate_quads = fans_in_order
+        saved = geometry.triangulate_quads, off.triangulate_quads, ply.triangulate_quads
+        geometry.triangulate_quads = off.triangulate_quads = ply.triangulate_quads = fans_in_order
         try:
             yield
         finally:
-            off.triangulate_quads, ply.triangulate_quads = saved
+            geometry.triangulate_quads, off.triangulate_quads, ply.triangulate_quads = saved
 
 
 _TRIMESH_PATCH = threading.Lock()
@@ -295,15 +300,16 @@ def fans_in_order(polygons, dtype=np.int64, use_fan=True):
         same = None
     if same is not None and same.ndim == 2:
         return _fans(same)
-    rows = [np.asarray(p, dtype=np.int64).reshape(-1) for p in polygons]
-    sizes = np.array([r.shape[0] for r in rows], dtype=np.int64)
+    sizes = np.fromiter(map(len, polygons), dtype=np.int64, count=len(polygons))
+    corners = np.array(list(itertools.chain.from_iterable(polygons)), dtype=np.int64)
+    starts = np.cumsum(sizes) - sizes  # each polygon's first corner in corners
     counts = np.maximum(sizes - 2, 0)
     out = np.empty((int(counts.sum()), 3), np.int64)
     first = np.cumsum(counts) - counts  # each polygon's first triangle row
     for size in np.unique(sizes[sizes >= 3]):
         which = np.flatnonzero(sizes == size)
         rows_of = first[which][:, None] + np.arange(size - 2)
-        out[rows_of.reshape(-1)] = _fans(np.stack([rows[i] for i in which]))
+        out[rows_of.reshape(-1)] = _fans(corners[starts[which][:, None] + np.arange(size)])
     return out
 
 

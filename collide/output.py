@@ -508,13 +508,18 @@ def _column_datasets(h5, path, group, layout):
     return datasets
 
 
-def _read_column(path, ds, dtype):
-    """A column converted to ``dtype``; integers that do not fit become -1 (out of range).
-    A dataset that cannot be read (a corrupt chunk, say) is an InputError naming it."""
+def _read(path, ds, strings=False):
+    """All of dataset ds (as str when ``strings``); a dataset that cannot be read (a
+    corrupt chunk, say) is an InputError naming it."""
     try:
-        data = np.asarray(ds[()])
+        return ds.asstr()[()] if strings else ds[()]
     except (OSError, ValueError, RuntimeError) as exc:
         raise _bad(path, f"cannot read ({str(exc)[:80]})", dataset=ds.name.lstrip("/")) from None
+
+
+def _read_column(path, ds, dtype):
+    """A column converted to ``dtype``; integers that do not fit become -1 (out of range)."""
+    data = np.asarray(_read(path, ds))
     wanted = np.dtype(dtype)
     if wanted.kind in "iu" and data.size:
         info = np.iinfo(wanted)
@@ -553,7 +558,7 @@ def _read_contacts(h5, path, limit):
     attrs = {k: (v.decode(errors="replace") if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
     if attrs.get("collide_format") != FORMAT_NAME:
         found = attrs.get("collide_format")
-        why = "is missing" if found is None else f"is {escape_text(str(found)[:40])!r}, not {FORMAT_NAME!r}"
+        why = "is missing" if found is None else f"is {str(found)[:40]!r}, not {FORMAT_NAME!r}"
         raise _bad(path, f"not a collide contacts file (attribute collide_format {why})")
     if str(attrs.get("format_version")) != str(FORMAT_VERSION):
         raise _bad(path, f"unsupported format_version {attrs.get('format_version')}")
@@ -566,15 +571,15 @@ def _read_contacts(h5, path, limit):
     declared += [(ds.shape, False) for ds in list(contacts.values()) + list(pairs.values())]
     check_memory(path, _contacts_bytes(declared), limit, "reading this contacts file")
     objects = {
-        "name": [str(s) for s in names["objects/name"].asstr()[()]],
-        "mesh": [str(s) for s in names["objects/mesh"].asstr()[()]],
+        "name": [str(s) for s in _read(path, names["objects/name"], strings=True)],
+        "mesh": [str(s) for s in _read(path, names["objects/mesh"], strings=True)],
         "triangles": _read_column(path, names["objects/triangles"], np.int64),
     }
     provenance = {}
     group = hdf5_object(h5, path, "provenance")
     if group is not None:
         provenance = dict(group.attrs)
-    frame_time = np.asarray(names["frames/time"][()], dtype=np.float64)
+    frame_time = np.asarray(_read(path, names["frames/time"]), dtype=np.float64)
     return ScanResult.from_file({k: _read_column(path, ds, CONTACT_COLUMNS[k]) for k, ds in contacts.items()},
                                 objects,
                                 frame_time, _frame_index(h5, path, frame_time.shape),
@@ -589,7 +594,7 @@ def _frame_index(h5, path, shape):
     import h5py
     ds = hdf5_object(h5, path, "frames/index")
     if isinstance(ds, h5py.Dataset) and ds.shape == shape and ds.dtype.kind in "iu":
-        return np.asarray(ds[()], dtype=np.int64)
+        return np.asarray(_read(path, ds), dtype=np.int64)
     return np.arange(shape[0], dtype=np.int64)
 
 

@@ -115,7 +115,8 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
     motion = read_joints(joints)
     columns, ignored, at_zero = _movable_columns(robot, motion)
     meshes, fallback = link_meshes(robot, urdf_path, geometry, sources=inputs)
-    # nothing written may replace a file read: the URDF, the joints, a mesh it names
+    # nothing written may replace a file read, nor one the URDF names (either geometry kind)
+    inputs += named_mesh_files(robot, urdf_path)
     check_output_path(trajectory_out, inputs)
     _warn_joints(motion.source, ignored, at_zero)
     links = list(meshes)
@@ -125,7 +126,11 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
 
     stems = mesh_file_stems(links)
     for stem in stems:
-        check_not_an_input(Path(meshes_out) / f"{stem}{MESH_SUFFIX}", inputs)
+        mesh_out = Path(meshes_out) / f"{stem}{MESH_SUFFIX}"
+        check_not_an_input(mesh_out, inputs)
+        if os.path.realpath(mesh_out) == os.path.realpath(trajectory_out):
+            raise InputError(trajectory_out, f"is where link {links[stems.index(stem)]!r}'s mesh goes",
+                             "a trajectory path outside --meshes-out or of another name")
     staged = _stage_meshes(Path(meshes_out), {stem: meshes[link] for stem, link in zip(stems, links)})
     try:
         with atomic_path(trajectory_out) as tmp:
@@ -505,6 +510,22 @@ def link_meshes(robot, urdf_path, geometry="collision", sources=None):
         log.warning("%s: links without <%s> geometry use their <%s> geometry: %s", path, geometry,
                     other_kind, ", ".join(fallback))
     return meshes, fallback
+
+
+def named_mesh_files(robot, urdf_path):
+    """The existing files that the URDF's <mesh> elements name, of both geometry kinds."""
+    yourdfpy = _yourdfpy()
+    resolve = partial(yourdfpy.filename_handler_magic, dir=str(Path(urdf_path).absolute().parent))
+    found = []
+    for link in robot.links:
+        for element in list(link.visuals) + list(link.collisions):
+            mesh = element.geometry.mesh if element.geometry is not None else None
+            if mesh is not None and mesh.filename:
+                with _yourdfpy_quiet():
+                    path = resolve(fname=mesh.filename)
+                if os.path.isfile(path):
+                    found.append(path)
+    return found
 
 
 def _element_mesh(element, resolve, urdf_path, where, sources):

@@ -426,7 +426,7 @@ def test_corrupted_contacts_file_is_bad_input_for_every_reader(scanned, tmp_path
         assert_bad_input(run_cli(*command), f"collide: error: {bad}")
 
 
-@pytest.mark.parametrize("column", ["triangle_pairs/tri_b", "contacts/t_end"])
+@pytest.mark.parametrize("column", ["triangle_pairs/tri_b", "contacts/t_end", "frames/time", "objects/name"])
 def test_a_corrupt_data_chunk_is_bad_input_naming_its_dataset(scanned, tmp_path, column):
     _, _, contacts = scanned
     bad = tmp_path / "bad.h5"

@@ -15,12 +15,12 @@ from collide.load import fans_in_order, load_mesh
 SIZES = [3, 4, 3, 5, 4, 3, 6, 4]
 
 
-def _polygons(seed=3):
-    """(vertices float64 (V, 3), polygons [list of vertex indices]) of the SIZES, each
+def _polygons(seed=3, sizes=SIZES):
+    """(vertices float64 (V, 3), polygons [list of vertex indices]) of these sizes, each
     polygon on its own vertices, spread out so that every triangle is told apart."""
     rng = np.random.default_rng(seed)
     vertices, polygons = [], []
-    for k, size in enumerate(SIZES):
+    for k, size in enumerate(sizes):
         angles = rng.uniform(0.0, 2.0 * np.pi) + 2.0 * np.pi * np.arange(size) / size  # regular, turned
         ring = np.stack([np.cos(angles), np.sin(angles), np.full(size, float(k))], axis=1) + [3.0 * k, 0.0, 0.0]
         polygons.append(list(range(len(vertices), len(vertices) + size)))
@@ -54,11 +54,12 @@ def _write_ply(path, vertices, polygons):
 
 
 def _write_obj(path, vertices, polygons):
-    """With a material switch before every face, materials coming back (trimesh would
-    merge the faces of each material and put the parts in another order)."""
-    lines = ["mtllib none.mtl"] + ["v " + " ".join(repr(float(c)) for c in v) for v in vertices]
+    """With a material switch before every face, materials coming back, and "usemtl" in a
+    comment and an object name too (trimesh splits the faces at each, and would put the
+    parts in another order)."""
+    lines = ["mtllib none.mtl", "o part_usemtl_a"] + ["v " + " ".join(repr(float(c)) for c in v) for v in vertices]
     for k, p in enumerate(polygons):
-        lines.append(f"usemtl m{k % 3}")
+        lines.append(f"usemtl m{k % 3}" if k % 2 else f"# usemtl m{k % 3}")
         lines.append("f " + " ".join(str(i + 1) for i in p))
     path.write_text("\n".join(lines) + "\n")
 
@@ -79,9 +80,10 @@ def test_fans_in_order_match_a_loop():
     assert fans_in_order(same).tolist() == [[p[0], p[j], p[j + 1]] for p in same.tolist() for j in (1, 2, 3)]
 
 
+@pytest.mark.parametrize("sizes", [SIZES, [4] * 5], ids=["mixed", "quads"])
 @pytest.mark.parametrize("suffix", sorted(WRITERS))
-def test_faces_keep_the_file_order(suffix, tmp_path):
-    vertices, polygons = _polygons()
+def test_faces_keep_the_file_order(suffix, sizes, tmp_path):
+    vertices, polygons = _polygons(sizes=sizes)
     path = tmp_path / f"part.{suffix}"
     WRITERS[suffix](path, vertices, polygons)
     mesh = load_mesh(path)
@@ -136,5 +138,11 @@ def test_a_cut_off_binary_stl_says_so(tmp_path):
     with pytest.raises(InputError, match=r"cut.stl: binary STL header counts 12 triangles \(684 bytes\) but the "
                                          r"file has 344 bytes \(cut off\?\); expected a complete STL file"):
         load_mesh(path)
+    solid = b"solid exported by a CAD tool".ljust(80) + data[80:]  # binary headers may start with "solid"
+    path.write_bytes(solid[:344])
+    with pytest.raises(InputError, match=r"counts 12 triangles \(684 bytes\) but the file has 344 bytes"):
+        load_mesh(path)
+    path.write_bytes(solid)
+    assert load_mesh(path).faces.shape == (12, 3)
     path.write_bytes(data)
     assert load_mesh(path).faces.shape == (12, 3)

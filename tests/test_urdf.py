@@ -460,7 +460,9 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(case, robot, tmp_path):
 
 
 @pytest.mark.parametrize("written", ["trajectory over the joints", "trajectory over the urdf",
-                                     "trajectory over a mesh it names", "link mesh over a mesh it names"])
+                                     "trajectory over a mesh it names", "link mesh over a mesh it names",
+                                     "trajectory over a visual mesh", "link mesh over a visual mesh",
+                                     "trajectory where a link mesh goes"])
 def test_nothing_written_replaces_an_input(written, robot, tmp_path):
     joints = write_csv(tmp_path / "j.csv", [0.0, 0.1], {"j_shoulder": [0.0, 0.1]})
     part = robot.parent / "meshes" / "part.stl"
@@ -472,16 +474,26 @@ def test_nothing_written_replaces_an_input(written, robot, tmp_path):
         out = robot
     elif written == "trajectory over a mesh it names":
         out = part
-    else:  # the slider link's mesh would go to meshes/slider.ply: the file the URDF names for it
+    elif written == "trajectory where a link mesh goes":
+        out, meshes = tmp_path / "m" / "base.ply", tmp_path / "m"
+        (tmp_path / "m").mkdir()
+    else:  # the slider link's mesh would go to meshes/slider.ply: a file the URDF names (as <visual> of
+        # the base link, whose <collision> geometry is used, in the visual cases)
         trimesh.Trimesh(PART, PART_FACES, process=False).export(robot.parent / "meshes" / "slider.ply")
-        robot.write_text(urdf_text().replace("meshes/part.stl", "meshes/slider.ply", 1))
+        if "visual" in written:
+            text = urdf_text().replace('<link name="base">', '<link name="base">\n    <visual><geometry>'
+                                       '<mesh filename="meshes/slider.ply"/></geometry></visual>', 1)
+        else:
+            text = urdf_text().replace("meshes/part.stl", "meshes/slider.ply", 1)
+        robot.write_text(text)
         part = robot.parent / "meshes" / "slider.ply"
         before = {p: p.read_bytes() for p in (joints, robot, part)}
-        meshes, extra = robot.parent / "meshes", ("--force",)
+        out, meshes, extra = (part, tmp_path / "m", ()) if written.startswith("trajectory") else \
+            (tmp_path / "t.h5", robot.parent / "meshes", ("--force",))
     proc = run_cli("urdf", robot, joints, "-o", out, "--meshes-out", meshes, *extra)
     assert proc.returncode == 2, (proc.stdout, proc.stderr)
     line, = [x for x in proc.stderr.splitlines() if x.startswith("collide: error: ")]  # (and a warning)
-    assert "is an input of this command" in line and "; expected " in line, line
+    assert ("is an input of this command" in line or "is where link 'base'" in line) and "; expected " in line, line
     assert {p: p.read_bytes() for p in before} == before
     assert not (tmp_path / "t.h5").exists()
 

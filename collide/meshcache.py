@@ -67,7 +67,7 @@ CACHE_FORMAT = 1
 
 #: Behaviour of ``collide.load.load_mesh``. Bump whenever load_mesh (or what it
 #: asks of trimesh) changes the arrays it returns for some file.
-LOADER_VERSION = 2  # 2: faces in file order (OBJ with materials; PLY and OFF polygons)
+LOADER_VERSION = 3  # 2: faces in file order (OBJ with materials; PLY and OFF polygons); 3: files of quads only too
 
 #: Behaviour of ``collide.bvh.build_mesh_bvh``. Bump whenever the builder can
 #: return a different tree for the same arrays and options.

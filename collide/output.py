@@ -578,7 +578,7 @@ def _read_contacts(h5, path, limit):
     provenance = {}
     group = hdf5_object(h5, path, "provenance")
     if group is not None:
-        provenance = dict(group.attrs)
+        provenance = {key: _provenance_value(value) for key, value in group.attrs.items()}
     frame_time = np.asarray(_read(path, names["frames/time"]), dtype=np.float64)
     return ScanResult.from_file({k: _read_column(path, ds, CONTACT_COLUMNS[k]) for k, ds in contacts.items()},
                                 objects,
@@ -586,6 +586,19 @@ def _read_contacts(h5, path, limit):
                                 {k: _read_column(path, ds, TRIANGLE_PAIR_COLUMNS[k]) for k, ds in pairs.items()}
                                 or None,
                                 attrs, provenance)
+
+
+def _provenance_value(value):
+    """A provenance attribute as the scan's result holds it: the mappings and lists that
+    write_result stored as JSON text parsed back, other text as str."""
+    if isinstance(value, bytes):
+        value = value.decode(errors="replace")
+    if isinstance(value, str) and value[:1] in ("{", "["):
+        try:
+            return json.loads(value)
+        except ValueError:
+            return value
+    return value
 
 
 def _frame_index(h5, path, shape):

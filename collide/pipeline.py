@@ -2,6 +2,7 @@
 chunk of frames (in parallel) -> contact intervals -> result (-> file).
 """
 import datetime
+import functools
 import hashlib
 import importlib
 import logging
@@ -30,7 +31,8 @@ from .contacts import (
     sort_columns,
 )
 from .discrete import scan_frames, smallest_touching_pairs
-from .errors import InputError, UsageError
+from .errors import InputError, UsageError, stop_request
+from .files import parse_size
 from .filters import build_filters, describe
 from .jit import kernel_cache_dir, thread_limit
 from .jit_events import announce, compile_notice
@@ -823,17 +825,71 @@ def compile_contact_points(ps, poses):
                    np.zeros((0, 3)), 0, 0, True)
 
 
-def _check_options(mode, interpolation, workers):
+def _check_options(mode, interpolation, workers, split, leaf_size, time_tol, warn_angle, frames, max_memory):
+    """scan's options checked as the command line checks them (UsageError naming the
+    option); returns (workers, leaf_size, time_tol, warn_angle) as int and float, so that
+    kernels compile once whatever numeric types come in."""
     if mode not in MODES:
         raise UsageError(f"unknown mode {mode!r}; expected one of {', '.join(MODES)}")
     if interpolation not in INTERPOLATIONS:
         raise UsageError(f"unknown interpolation {interpolation!r}; expected one of {', '.join(INTERPOLATIONS)}")
-    workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    if workers < 1:
-        raise UsageError(f"workers must be >= 1, got {workers}")
-    return workers
+    if split not in config.SPLIT_RULES:
+        raise UsageError(f"unknown split {split!r}; expected one of {', '.join(config.SPLIT_RULES)}")
+    workers = (os.cpu_count() or 1) if workers is None else \
+        _whole("workers", workers, 1, config.MAX_WORKERS)
+    if leaf_size is not None:
+        leaf_size = _whole("leaf_size", leaf_size, 1, config.MAX_LEAF_SIZE)
+    time_tol = _real("time_tol", time_tol, 0.0, 1.0, "a fraction of the frame interval in (0, 1]", open_low=True)
+    warn_angle = _real("warn_angle", warn_angle, 0.0, 180.0, "degrees per frame in [0, 180]")
+    if not (frames is None or isinstance(frames, str) or (isinstance(frames, slice) and all(
+            v is None or _is_whole(v) for v in (frames.start, frames.stop, frames.step)))):
+        raise UsageError(f"frames {frames!r}: not a slice of frame indices; expected None, a slice of integers "
+                         "or 'START:STOP[:STEP]'")
+    if max_memory is not None:
+        try:
+            parse_size(max_memory)
+        except ValueError as exc:
+            raise UsageError(f"max_memory: {exc}; expected bytes or a size like 4G or 512M") from None
+    return workers, leaf_size, time_tol, warn_angle
 
 
+def _is_whole(value):
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def _whole(name, value, low, high):
+    """value as an int in [low, high], or UsageError."""
+    if not _is_whole(value) or not low <= value <= high:
+        raise UsageError(f"{name} {value!r}: expected a whole number from {low} to {high}")
+    return int(value)
+
+
+def _real(name, value, low, high, expected, open_low=False):
+    """value as a float in [low, high] ((low, high] when open_low), or UsageError."""
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    number = float(value) if ok else np.nan
+    if not (ok and (low < number if open_low else low <= number) and number <= high):
+        raise UsageError(f"{name} {value!r}: expected {expected}")
+    return number
+
+
+def _stop_requests_unwrapped(function):
+    """A Ctrl-C (or collide's Terminated) that lands while numba hands a kernel's result
+    back comes out of numba as a SystemError around it (errors.stop_request): raise the
+    stop request itself, so that callers of the API see KeyboardInterrupt."""
+    @functools.wraps(function)
+    def unwrapped(*args, **kwargs):
+        try:
+            return function(*args, **kwargs)
+        except SystemError as exc:
+            stop = stop_request(exc)
+            if stop is None:
+                raise
+            raise stop from None
+    return unwrapped
+
+
+@_stop_requests_unwrapped
 def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
          triangle_pairs=False, frames=None, workers=None, scheduler=None,
          time_tol=config.TIME_TOL, interpolation="screw", warn_angle=config.SCREW_WARN_DEG,
@@ -851,13 +907,18 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     (floats): a frame is one unit, a motion step (continuous mode) weighs what steps
     have cost per frame's cost so far; ``total`` is an estimate that may change until
     ``done`` reaches it; ``stage(text)`` as each stage begins ("loading inputs",
-    "building BVHs", "preparing kernels", "scanning", "contact points"). With ``output``
-    the result is also written there (atomically; never over an input).
+    "building BVHs (N meshes)", "preparing kernels", "scanning", "contact points"). With
+    ``output`` the result is also written there (atomically; never over an input), and
+    triangle pairs (``triangle_pairs=True``) go only there, as frames finish: the
+    returned result's triangle_pairs is then None (read_contacts(output) has them).
+    Options are checked as the command line checks them (UsageError); a Ctrl-C raises
+    KeyboardInterrupt.
     ``max_memory`` and ``allow_external_data``: see load.load_trajectory. ``cache=False``
     parses every mesh and builds every BVH afresh (see collide.meshcache). Returns a
     ScanResult.
     """
-    workers = _check_options(mode, interpolation, workers)
+    workers, leaf_size, time_tol, warn_angle = _check_options(mode, interpolation, workers, split, leaf_size,
+                                                              time_tol, warn_angle, frames, max_memory)
     inputs = input_files(meshes, trajectory, glob) if output is not None else []
     if output is not None:
         check_output_path(output, inputs)  # fail before the work, not after

@@ -70,10 +70,12 @@ def scan_filters(cf):
     """The pair filters a contacts file was scanned with, as a JSON-able dict ({"ignore":
     [[a, b], ...], "only": [...]}); none for files from scans without filters."""
     import json
-    try:
-        parameters = json.loads(cf.provenance.get("parameters", "{}"))
-    except (TypeError, ValueError):
-        parameters = {}
+    parameters = cf.provenance.get("parameters", {})  # parsed by read_contacts; text from older readers
+    if isinstance(parameters, str):
+        try:
+            parameters = json.loads(parameters)
+        except ValueError:
+            parameters = {}
     filters = parameters.get("filters") if isinstance(parameters, dict) else None
     if not isinstance(filters, dict):
         filters = {}

@@ -9,7 +9,9 @@ import numpy as np
 class ScanResult:
     """A scan's result (or a contacts file's content).
 
-    ``contacts`` and ``triangle_pairs`` (None unless scanned with --triangle-pairs)
+    ``contacts`` and ``triangle_pairs`` (None unless scanned with --triangle-pairs; also
+    None when a scan with ``output`` streamed them into that file to keep memory bounded:
+    read_contacts(output) has them)
     are dicts of numpy columns, as in the file's contacts/ and triangle_pairs/ groups;
     object_* describe the objects (trajectory order, then static meshes), frame_time
     float64 (T,) the analysed frame times and frame_index int64 (T,) their indices in
@@ -46,7 +48,8 @@ class ScanResult:
             columns = self.contacts
         elif what == "triangle-pairs":
             if self.triangle_pairs is None:
-                raise ValueError("this result has no triangle pairs (scan with triangle_pairs=True)")
+                raise ValueError("this result has no triangle pairs (scan with triangle_pairs=True; with "
+                                 "output=, read them back with collide.read_contacts)")
             columns = self.triangle_pairs
         else:
             raise ValueError(f"what={what!r}: expected 'contacts' or 'triangle-pairs'")
@@ -61,10 +64,12 @@ class ScanResult:
     @classmethod
     def from_file(cls, contacts, objects, frame_time, frame_index, triangle_pairs, attrs, provenance):
         """The result of a contacts file's groups (see output.read_contacts)."""
-        try:
-            versions = json.loads(provenance.get("versions", "{}"))
-        except (TypeError, ValueError):
-            versions = {}
+        versions = provenance.get("versions", {})  # parsed by read_contacts; text from older readers
+        if isinstance(versions, str):
+            try:
+                versions = json.loads(versions)
+            except ValueError:
+                versions = {}
         return cls(object_names=list(objects["name"]), object_meshes=list(objects["mesh"]),
                    object_triangles=np.asarray(objects["triangles"]), frame_time=frame_time,
                    frame_index=frame_index, contacts=contacts, triangle_pairs=triangle_pairs,

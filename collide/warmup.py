@@ -17,6 +17,7 @@ completed with warm kernels; without it, the next scan of that mode warms up fir
 
     python -m collide.warmup UNIT [UNIT ...]     # the worker: compile these units
 """
+import functools
 import hashlib
 import json
 import os
@@ -57,12 +58,18 @@ def plan(units, processes, busy=()):
 
 # --- is the cache warm? ------------------------------------------------------------------------
 
+@functools.lru_cache(maxsize=1)
 def cpu_key():
-    """A short key of this machine's CPU as numba's cache sees it (name and features)."""
+    """A short key of this machine's CPU as numba's cache sees it (name and features).
+    Asked once per process, with stop signals held: llvmlite frees the strings it gets
+    from LLVM twice when a Ctrl-C lands between its two steps (the process aborts)."""
     import llvmlite.binding as llvm
     from numba.core import config
-    name = config.CPU_NAME or llvm.get_host_cpu_name()
-    features = config.CPU_FEATURES if config.CPU_NAME else llvm.get_host_cpu_features().flatten()
+
+    from .output import signals_held
+    with signals_held():
+        name = config.CPU_NAME or llvm.get_host_cpu_name()
+        features = config.CPU_FEATURES if config.CPU_NAME else llvm.get_host_cpu_features().flatten()
     return hashlib.sha256(f"{name}|{features}".encode()).hexdigest()[:12]
 
 

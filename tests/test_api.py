@@ -122,3 +122,53 @@ def test_progress_share_follows_time_not_item_counts():
         assert done / total == pytest.approx(at / total_time, rel=1e-12)
     assert reports[-1][0] == reports[-1][1]
     assert all(b[0] > a[0] for a, b in zip(reports, reports[1:]))
+
+
+BAD_OPTIONS = [("time_tol", 0), ("time_tol", -1.0), ("time_tol", float("nan")), ("time_tol", float("inf")),
+               ("time_tol", 50), ("time_tol", "1e-3"), ("time_tol", True), ("warn_angle", -5.0),
+               ("split", "foo"), ("leaf_size", 0), ("leaf_size", 2.5), ("workers", 0), ("workers", 5000),
+               ("workers", "two"), ("workers", True), ("frames", 5), ("frames", [1, 2, 3]),
+               ("frames", slice("a", None)), ("max_memory", "lots")]
+
+
+@pytest.mark.parametrize("name, value", BAD_OPTIONS, ids=[f"{n}={v!r}" for n, v in BAD_OPTIONS])
+def test_bad_options_are_usage_errors_naming_the_option(name, value):
+    with pytest.raises(UsageError, match=rf"\b{name}\b"):
+        collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", **{name: value})
+
+
+def test_numeric_options_of_other_types_give_the_same_result():
+    """An int time_tol or leaf size, numpy numbers: the same contacts as Python floats
+    (and the same compiled kernels: they are converted first)."""
+    base = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", time_tol=0.5, workers=1, leaf_size=4)
+    other = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", time_tol=np.float32(0.5),
+                         workers=np.int64(1), leaf_size=np.int32(4), warn_angle=90)
+    for name, column in base.contacts.items():
+        np.testing.assert_array_equal(other.contacts[name], column, err_msg=name)
+    parameters = other.provenance["parameters"]
+    assert type(parameters["time_tol"]) is float and type(parameters["workers"]) is int
+
+
+def test_provenance_reads_back_as_the_scan_returned_it(tmp_path):
+    out = tmp_path / "c.h5"
+    scanned = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", output=out)
+    read = collide.read_contacts(out)
+    assert read.provenance == scanned.provenance
+    assert read.provenance["parameters"]["mode"] == "discrete" and read.versions == scanned.versions
+
+
+def test_a_stop_request_inside_numba_s_error_is_raised_as_itself():
+    from collide.pipeline import _stop_requests_unwrapped
+
+    def kernel_interrupted():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as stop:
+            raise SystemError("returned a result with an exception set") from stop
+
+    def kernel_failed():
+        raise SystemError("something else")
+    with pytest.raises(KeyboardInterrupt):
+        _stop_requests_unwrapped(kernel_interrupted)()
+    with pytest.raises(SystemError, match="something else"):
+        _stop_requests_unwrapped(kernel_failed)()

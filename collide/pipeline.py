@@ -919,6 +919,10 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
     """
     workers, leaf_size, time_tol, warn_angle = _check_options(mode, interpolation, workers, split, leaf_size,
                                                               time_tol, warn_angle, frames, max_memory)
+    ignore, only = ([p] if isinstance(p, str) else p for p in (ignore, only))  # one 'A:B' text: one pattern
+    if glob is not None and isinstance(meshes, Mapping):
+        raise UsageError(f"glob {glob!r}: chooses files of a meshes folder, but the meshes are in memory; "
+                         "expected glob=None (every mesh given is used)")
     inputs = input_files(meshes, trajectory, glob) if output is not None else []
     if output is not None:
         check_output_path(output, inputs)  # fail before the work, not after

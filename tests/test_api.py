@@ -172,3 +172,12 @@ def test_a_stop_request_inside_numba_s_error_is_raised_as_itself():
         _stop_requests_unwrapped(kernel_interrupted)()
     with pytest.raises(SystemError, match="something else"):
         _stop_requests_unwrapped(kernel_failed)()
+
+
+def test_one_pattern_as_text_and_glob_with_meshes_in_memory():
+    as_list = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", ignore=["*:*"])
+    as_text = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", ignore="*:*")
+    assert as_text.stats["filters"] == as_list.stats["filters"] and as_text.contacts["t_begin"].size == 0
+    meshes, trajectory = fixture_in_memory()
+    with pytest.raises(UsageError, match="glob '[*].stl': chooses files of a meshes folder"):
+        collide.scan(meshes, trajectory, mode="discrete", glob="*.stl")

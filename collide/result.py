@@ -55,10 +55,10 @@ class ScanResult:
             raise ValueError(f"what={what!r}: expected 'contacts' or 'triangle-pairs'")
         frame = pd.DataFrame({name: np.asarray(column) for name, column in columns.items()})
         names = np.asarray(self.object_names, dtype=object)
-        frame.insert(0, "b", names[frame["object_b"].to_numpy()] if len(frame) else [])
-        frame.insert(0, "a", names[frame["object_a"].to_numpy()] if len(frame) else [])
+        frame.insert(0, "b", names[frame["object_b"].to_numpy()] if len(frame) else np.zeros(0, object))
+        frame.insert(0, "a", names[frame["object_a"].to_numpy()] if len(frame) else np.zeros(0, object))
         if what == "triangle-pairs":
-            frame.insert(1, "time", self.frame_time[frame["frame"].to_numpy()] if len(frame) else [])
+            frame.insert(2, "time", self.frame_time[frame["frame"].to_numpy()] if len(frame) else np.zeros(0))
         return frame
 
     @classmethod

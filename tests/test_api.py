@@ -64,6 +64,11 @@ def test_scan_and_read_contacts_return_the_same_type_with_dataframes(tmp_path):
     pairs = back.to_dataframe("triangle-pairs")
     assert isinstance(pairs, pd.DataFrame) and len(pairs) == result.stats["triangle_pairs"] > 0
     np.testing.assert_array_equal(pairs["time"].to_numpy(), back.frame_time[pairs["frame"].to_numpy()])
+    assert list(pairs.columns[:4]) == ["a", "b", "time", "frame"]
+    none = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", ignore="*:*", triangle_pairs=True)
+    for table in (none.to_dataframe(), none.to_dataframe("triangle-pairs")):  # empty: the same column types
+        assert len(table) == 0 and table["a"].dtype == table["b"].dtype == object
+    assert none.to_dataframe("triangle-pairs")["time"].dtype == np.float64
     in_memory = collide.scan(FIXTURE / "meshes", FIXTURE / "traj.h5", mode="discrete", triangle_pairs=True)
     for name, column in in_memory.triangle_pairs.items():
         np.testing.assert_array_equal(back.triangle_pairs[name], column, err_msg=name)

@@ -69,13 +69,7 @@ def triangle_pair_rows(cf):
 def scan_filters(cf):
     """The pair filters a contacts file was scanned with, as a JSON-able dict ({"ignore":
     [[a, b], ...], "only": [...]}); none for files from scans without filters."""
-    import json
-    parameters = cf.provenance.get("parameters", {})  # parsed by read_contacts; text from older readers
-    if isinstance(parameters, str):
-        try:
-            parameters = json.loads(parameters)
-        except ValueError:
-            parameters = {}
+    parameters = cf.provenance.get("parameters", {})  # parsed from JSON by read_contacts
     filters = parameters.get("filters") if isinstance(parameters, dict) else None
     if not isinstance(filters, dict):
         filters = {}

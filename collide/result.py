@@ -1,5 +1,4 @@
 """What a scan found, in memory: the same type from ``collide.scan`` and ``collide.read_contacts``."""
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,12 +63,7 @@ class ScanResult:
     @classmethod
     def from_file(cls, contacts, objects, frame_time, frame_index, triangle_pairs, attrs, provenance):
         """The result of a contacts file's groups (see output.read_contacts)."""
-        versions = provenance.get("versions", {})  # parsed by read_contacts; text from older readers
-        if isinstance(versions, str):
-            try:
-                versions = json.loads(versions)
-            except ValueError:
-                versions = {}
+        versions = provenance.get("versions", {})  # parsed from JSON by read_contacts
         return cls(object_names=list(objects["name"]), object_meshes=list(objects["mesh"]),
                    object_triangles=np.asarray(objects["triangles"]), frame_time=frame_time,
                    frame_index=frame_index, contacts=contacts, triangle_pairs=triangle_pairs,

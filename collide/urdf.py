@@ -114,8 +114,8 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
     robot = load_robot(urdf_path)
     motion = read_joints(joints)
     columns, ignored, at_zero = _movable_columns(robot, motion)
-    meshes, fallback = link_meshes(robot, urdf_path, geometry, sources=inputs)
-    # nothing written may replace a file read, nor one the URDF names (either geometry kind)
+    meshes, fallback = link_meshes(robot, urdf_path, geometry)
+    # nothing written may replace a file read, nor a mesh file the URDF names (either geometry kind)
     inputs += named_mesh_files(robot, urdf_path)
     check_output_path(trajectory_out, inputs)
     _warn_joints(motion.source, ignored, at_zero)
@@ -125,11 +125,11 @@ def urdf_to_scene(urdf_path, joints, meshes_out, trajectory_out, geometry="colli
     ignore = adjacent_pairs(robot, links) if ignore_adjacent else None
 
     stems = mesh_file_stems(links)
-    for stem in stems:
+    for stem, link in zip(stems, links):
         mesh_out = Path(meshes_out) / f"{stem}{MESH_SUFFIX}"
         check_not_an_input(mesh_out, inputs)
         if os.path.realpath(mesh_out) == os.path.realpath(trajectory_out):
-            raise InputError(trajectory_out, f"is where link {links[stems.index(stem)]!r}'s mesh goes",
+            raise InputError(trajectory_out, f"is where link {link!r}'s mesh goes",
                              "a trajectory path outside --meshes-out or of another name")
     staged = _stage_meshes(Path(meshes_out), {stem: meshes[link] for stem, link in zip(stems, links)})
     try:
@@ -475,21 +475,19 @@ def _warn_joints(source, ignored, at_zero):
 
 # --- 3. link meshes --------------------------------------------------------------------------------
 
-def link_meshes(robot, urdf_path, geometry="collision", sources=None):
+def link_meshes(robot, urdf_path, geometry="collision"):
     """Each link's geometry as one triangle mesh in the link frame.
 
     A link's elements of the chosen kind ("collision" or "visual"; the other kind when the
     link has none) are merged in file order, each with its <origin> (and a mesh's
-    ``scale``) applied. Links without geometry are left out. sources: a list that the
-    paths of the mesh files read are appended to (None: not recorded).
+    ``scale``) applied. Links without geometry are left out.
 
     Returns ({link name: (vertices float64 (V, 3), faces int64 (F, 3))} in URDF link
     order, [links that used the other kind]).
     """
     import trimesh  # noqa: F401  (primitives below)
-    yourdfpy = _yourdfpy()
     path = Path(urdf_path)
-    resolve = partial(yourdfpy.filename_handler_magic, dir=str(path.absolute().parent))
+    resolve = _file_resolver(path)
     chosen, other = (("collisions", "visuals") if geometry == "collision" else ("visuals", "collisions"))
     meshes, fallback = {}, []
     for link in robot.links:
@@ -500,7 +498,7 @@ def link_meshes(robot, urdf_path, geometry="collision", sources=None):
         if attribute == other:
             fallback.append(link.name)
         kind = attribute[:-1]
-        parts = [_element_mesh(e, resolve, path, f"link {link.name!r} <{kind}>", sources) for e in elements]
+        parts = [_element_mesh(e, resolve, path, f"link {link.name!r} <{kind}>") for e in elements]
         meshes[link.name] = _merge(parts)
     if not meshes:
         raise InputError(path, "no link has <collision> or <visual> geometry",
@@ -512,10 +510,15 @@ def link_meshes(robot, urdf_path, geometry="collision", sources=None):
     return meshes, fallback
 
 
+def _file_resolver(urdf_path):
+    """resolve(fname=...) -> the path of a file a URDF names (relative to its folder,
+    package:// looked up there and in its parents)."""
+    return partial(_yourdfpy().filename_handler_magic, dir=str(Path(urdf_path).absolute().parent))
+
+
 def named_mesh_files(robot, urdf_path):
     """The existing files that the URDF's <mesh> elements name, of both geometry kinds."""
-    yourdfpy = _yourdfpy()
-    resolve = partial(yourdfpy.filename_handler_magic, dir=str(Path(urdf_path).absolute().parent))
+    resolve = _file_resolver(urdf_path)
     found = []
     for link in robot.links:
         for element in list(link.visuals) + list(link.collisions):
@@ -528,9 +531,9 @@ def named_mesh_files(robot, urdf_path):
     return found
 
 
-def _element_mesh(element, resolve, urdf_path, where, sources):
+def _element_mesh(element, resolve, urdf_path, where):
     """One <collision>/<visual> element -> (vertices float64 (V, 3), faces int64 (F, 3)) in the
-    link frame; a mesh file read is appended to sources (unless None)."""
+    link frame."""
     import trimesh
     g = element.geometry
     if g.box is not None:
@@ -544,7 +547,7 @@ def _element_mesh(element, resolve, urdf_path, where, sources):
         (radius,) = _positive([g.sphere.radius], (1,), urdf_path, f"{where} sphere radius")
         mesh = trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=radius)
     elif g.mesh is not None:
-        vertices, faces = _referenced_mesh(g.mesh, resolve, urdf_path, where, sources)
+        vertices, faces = _referenced_mesh(g.mesh, resolve, urdf_path, where)
         mesh = None
     else:
         raise InputError(urdf_path, f"{where} has an empty <geometry>", "a box, cylinder, sphere or mesh")
@@ -564,9 +567,8 @@ def _positive(values, shape, urdf_path, what):
     return array
 
 
-def _referenced_mesh(mesh, resolve, urdf_path, where, sources):
-    """Load a <mesh filename=... scale=...> element's file and scale it (origin not applied);
-    its path is appended to sources (unless None)."""
+def _referenced_mesh(mesh, resolve, urdf_path, where):
+    """Load a <mesh filename=... scale=...> element's file and scale it (origin not applied)."""
     if not mesh.filename:
         raise InputError(urdf_path, f"{where} <mesh> has no filename", "<mesh filename=\"...\">")
     with _yourdfpy_quiet():
@@ -576,8 +578,6 @@ def _referenced_mesh(mesh, resolve, urdf_path, where, sources):
                          "the file at that path relative to the URDF's folder (package://NAME/ is "
                          "looked up in that folder and its parents)")
     loaded = load_mesh(found)
-    if sources is not None:
-        sources.append(found)
     scale = np.float64(1.0) if mesh.scale is None else np.asarray(mesh.scale, dtype=np.float64)
     if scale.shape not in ((), (1,), (3,)) or not np.isfinite(scale).all():
         raise InputError(urdf_path, f"{where} mesh scale {np.atleast_1d(scale).tolist()}",

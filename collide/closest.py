@@ -6,7 +6,7 @@ job (predicates.py) and the certified CCD's (ccd.py).
 """
 import numpy as np
 
-from .jit import njit
+from .jit import njit, njit_entry
 from .motion import MOTION_WIDTH, points_at, screw_motion
 from .packed import to_world
 
@@ -188,7 +188,7 @@ def contact_point(p, q):
     return best, best_gap
 
 
-@njit(cache=True, nogil=True)
+@njit_entry
 def contact_points(ps, block, rows, row0, row1, fractions, object_a, object_b, tri_a, tri_b, point, start, stop,
                    screw):
     """Fill point (C, 3) float64 at the contact rows rows[start:stop] (rows int64 (R,)):

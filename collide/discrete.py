@@ -46,7 +46,7 @@ from .broad import (
 )
 from .bvh import smallest_id_under
 from .filters import pair_selected
-from .jit import njit, njit_borrowing
+from .jit import njit, njit_borrowing, njit_entry
 from .motion import MOTION_WIDTH, swept_box
 from .narrow import (
     Placed,
@@ -345,7 +345,7 @@ def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_orde
     return hits, n_hits, found, n_found, stack, leaves, tri
 
 
-@njit(cache=True, nogil=True)
+@njit_entry
 def scan_frames(ps, poses, static, pairs, frame_start, frame_stop, collect_pairs, first_only):
     """Discrete scan of frames [frame_start, frame_stop).
 
@@ -469,7 +469,7 @@ def _smallest_pair_of(ps, rp, f, a, b, margin, static, stamp, world, stack, coun
     return stack, best_a, best_b
 
 
-@njit(cache=True, nogil=True)
+@njit_entry
 def smallest_touching_pairs(ps, poses, static, rows, wanted, start, stop):
     """The smallest intersecting triangle pair of object pair wanted[k] = (a, b) (int64
     (K, 2)) at poses[rows[k]] (rows int64 (K,)), for k in [start, stop): int64

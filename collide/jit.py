@@ -23,6 +23,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+import llvmlite.binding as llvm
 import numba
 from numba import njit, prange  # noqa: F401  (re-exported: kernel modules import them from here)
 from numba.core import caching
@@ -51,6 +52,53 @@ def njit_allocating(function):
     helper that allocates scratch arrays of its own and returns none (the exact
     predicates' expansions)."""
     return njit(cache=True, _nrt=True)(function)
+
+
+def njit_entry(function):
+    """``njit(cache=True, nogil=True)`` for a kernel that Python calls and no other kernel
+    does (the scan kernels): its cache entry keeps the machine code and only the *names*
+    its code defines, not the LLVM bitcode numba also stores to inline a function into
+    callers. Reading that bitcode back cost 150 ms of every continuous run (parsing
+    2 MB, then listing its symbols), more than the scan of a small scene.
+
+    In its place the entry holds a module that defines each of those names as a
+    function that traps, so that numba registers the same symbols as before; a kernel
+    that called an entry kernel would link those traps, which
+    tests/test_kernel_cache.py rules out by checking that no kernel names one."""
+    dispatcher = njit(cache=True, nogil=True)(function)
+    dispatcher._cache = EntryKernelCache(dispatcher.py_func)
+    return dispatcher
+
+
+class _EntryKernelCacheImpl(caching.CompileResultCacheImpl):
+    """numba's compile-result cache with the library's bitcode replaced by symbol stubs."""
+
+    def reduce(self, cres):
+        library, *rest = super().reduce(cres)
+        name, kind, (object_code, bitcode) = library
+        return ((name, kind, (object_code, symbol_stubs(bitcode))), *rest)
+
+
+class EntryKernelCache(caching.FunctionCache):
+    """The cache of an njit_entry kernel (see there)."""
+    _impl_class = _EntryKernelCacheImpl
+
+
+def symbol_stubs(bitcode):
+    """LLVM bitcode (bytes) of a module defining, as functions that trap, every function
+    and global variable that the module in ``bitcode`` defines, and nothing else."""
+    module = llvm.parse_bitcode(bitcode)
+    names = [value.name for values in (module.functions, module.global_variables)
+             for value in values if not value.is_declaration]
+    stubs = "".join(f'define void @"{_llvm_escape(name)}"() {{\n  call void @llvm.trap()\n  unreachable\n}}\n'
+                    for name in names)
+    return llvm.parse_assembly(stubs + "declare void @llvm.trap()\n").as_bitcode()
+
+
+def _llvm_escape(name):
+    """``name`` for a quoted LLVM identifier: \\XX for every byte outside printable ASCII
+    and for the quote and backslash."""
+    return "".join(chr(b) if 32 <= b < 127 and b not in (34, 92) else f"\\{b:02X}" for b in name.encode())
 
 
 def _source_digest():

@@ -90,7 +90,7 @@ from .discrete import (
     pair_scratch,
 )
 from .filters import pair_selected
-from .jit import njit, njit_borrowing
+from .jit import njit, njit_borrowing, njit_entry
 from .motion import (
     M_ETA,
     M_THETA,
@@ -590,7 +590,7 @@ class Step(NamedTuple):
     frame: FrameTests
 
 
-@njit(cache=True, nogil=True)
+@njit_entry
 def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, find_frames,
                    interpolation, time_tol, dist_tol, one_sided_leaves):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).

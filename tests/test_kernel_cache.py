@@ -20,6 +20,7 @@ from numba.core import types as numba_types
 from numba.core.registry import CPUDispatcher
 
 import collide
+from collide.jit import EntryKernelCache
 
 # compiles one small kernel (the pair filter) and reports how many functions numba compiled
 PROBE = """
@@ -255,3 +256,59 @@ def test_borrowing_helpers_are_given_no_array_back(two_boxes):
             assert not _holds_array(return_type), (d.py_func.__qualname__, return_type)
             checked += 1
     assert checked > 100  # the scans compiled (or loaded) most of them
+
+
+def _names_dispatchers(dispatcher):
+    """Every dispatcher a kernel's source names (called or not): by name, or as module.name."""
+    names = dispatcher.py_func.__globals__
+    found = []
+    for node in ast.walk(ast.parse(textwrap.dedent(inspect.getsource(dispatcher.py_func)))):
+        target = None
+        if isinstance(node, ast.Name):
+            target = names.get(node.id)
+        elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
+            owner = names.get(node.value.id)
+            if isinstance(owner, pytypes.ModuleType):
+                target = getattr(owner, node.attr, None)
+        if isinstance(target, CPUDispatcher):
+            found.append(target)
+    return found
+
+
+def _entry_kernels():
+    return {name: d for name, d in _collide_dispatchers().items() if isinstance(d._cache, EntryKernelCache)}
+
+
+def test_no_kernel_names_an_entry_kernel():
+    """An njit_entry kernel's cache entry holds trapping stubs where numba keeps the code it
+    would inline into a caller: a kernel that called (or was handed) one would trap."""
+    entries = _entry_kernels()
+    assert {"collide.swept.scan_intervals", "collide.discrete.scan_frames", "collide.discrete.smallest_touching_pairs",
+            "collide.closest.contact_points"} <= set(entries)
+    entry_ids = {id(d) for d in entries.values()}
+    naming = sorted((name, other.py_func.__qualname__) for name, d in _collide_dispatchers().items()
+                    for other in _names_dispatchers(d) if id(other) in entry_ids and other is not d)
+    assert naming == []
+
+
+def _trap_only(function):
+    return [i.opcode for block in function.blocks for i in block.instructions] == ["call", "unreachable"]
+
+
+def test_entry_kernels_are_stored_as_machine_code_and_symbol_names(two_boxes):
+    """Each stored version of an entry kernel: the machine code, and in place of numba's
+    bitcode a module of trapping stubs defining its entry points' names (which numba looks
+    up after loading). Every scan of the suite runs the loaded kernels."""
+    meshes, traj = two_boxes
+    assert collide.scan(meshes, _turning_mover(traj), mode="continuous", workers=1).contacts["object_a"].size > 0
+    checked = 0
+    for name, dispatcher in _entry_kernels().items():
+        cache = dispatcher._cache
+        for key in cache._cache_file._load_index():
+            cres = cache.load_overload(key[0], dispatcher.targetctx)
+            module = cres.library._get_module_for_linking()
+            defined = {f.name: f for f in module.functions if not f.is_declaration}
+            assert defined and all(_trap_only(f) for f in defined.values()), name
+            assert {cres.fndesc.llvm_func_name, cres.fndesc.llvm_cpython_wrapper_name} <= set(defined), name
+            checked += 1
+    assert checked >= 4

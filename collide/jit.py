@@ -86,10 +86,12 @@ class EntryKernelCache(caching.FunctionCache):
 
 def symbol_stubs(bitcode):
     """LLVM bitcode (bytes) of a module defining, as functions that trap, every function
-    and global variable that the module in ``bitcode`` defines, and nothing else."""
+    and global variable that the module in ``bitcode`` defines and other modules can see
+    (not internal or private), and nothing else."""
     module = llvm.parse_bitcode(bitcode)
+    hidden = (llvm.Linkage.internal, llvm.Linkage.private)
     names = [value.name for values in (module.functions, module.global_variables)
-             for value in values if not value.is_declaration]
+             for value in values if not value.is_declaration and value.linkage not in hidden]
     stubs = "".join(f'define void @"{_llvm_escape(name)}"() {{\n  call void @llvm.trap()\n  unreachable\n}}\n'
                     for name in names)
     return llvm.parse_assembly(stubs + "declare void @llvm.trap()\n").as_bitcode()

@@ -42,6 +42,11 @@ if _AS_PROGRAM:
     # numba colours its error messages through colorama when installed, which then writes a
     # colour reset to standard output at exit (into pipes that a terminal records): no colours
     os.environ.setdefault("NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING", "1")
+    # numpy's OpenBLAS starts a thread per core as it loads, each spinning about 0.1 s of CPU
+    # before it sleeps, though collide's work runs in numba's kernels and needs no BLAS (0.13 s
+    # of CPU per run on two cores, taken from whatever else runs: parallel jobs, CI). Unless
+    # the user set it, one thread: the caller's.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import json  # noqa: E402
 import logging  # noqa: E402

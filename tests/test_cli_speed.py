@@ -288,6 +288,34 @@ def test_the_program_skips_numba_s_blas_probe(two_boxes, tmp_path):
             np.testing.assert_array_equal(written[column], probed[column])
 
 
+THREADS_AFTER_NUMPY = """
+import os, sys
+sys.argv[0] = 'collide'
+if sys.argv[1] == 'program':
+    import collide_cli.main
+import numpy
+print(len(os.listdir('/proc/self/task')), os.environ.get('OPENBLAS_NUM_THREADS'))
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task") or (os.cpu_count() or 1) < 2, reason="needs /proc, 2 cores")
+def test_the_program_starts_no_blas_threads_unless_asked():
+    """numpy's OpenBLAS starts a spinning thread per core as it loads (0.1 s of CPU each);
+    collide's work needs none: as the program, numpy loads without them, unless the user
+    set OPENBLAS_NUM_THREADS."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+
+    def threads(how, **extra):
+        run = subprocess.run([sys.executable, "-c", THREADS_AFTER_NUMPY, how], env={**env, **extra},
+                             capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr
+        count, setting = run.stdout.split()
+        return int(count), setting
+    assert threads("program") == (1, "1")
+    assert threads("library")[0] > 1  # numpy alone starts them: the check above can fail
+    assert threads("program", OPENBLAS_NUM_THREADS="2") == (2, "2")
+
+
 def test_a_single_item_runs_in_the_calling_thread_and_more_are_shared_out(monkeypatch):
     """Starting worker threads costs 0.2-0.5 ms: a run of one item (a scan's one contact,
     through the smallest-pair search and the contact points) calls its kernel in the

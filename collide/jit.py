@@ -17,6 +17,7 @@ Linux). Inside: ``<collide version>-<source digest>-py<X.Y>-numba<version>``. A 
 that cannot be written leaves numba's own choice (next to the sources, or its
 per-user cache).
 """
+import functools
 import hashlib
 import os
 import sys
@@ -137,10 +138,10 @@ class ContentKeyedLocator(caching._CacheLocator):
     """numba cache locator for collide's own functions: kernel_cache_dir(), with the
     source digest as freshness stamp."""
 
-    def __init__(self, py_func, py_file):
+    def __init__(self, py_func, py_file, cache_path=None):
         self._py_file = py_file  # numba names it in its "cannot cache" warning
         self._lineno = py_func.__code__.co_firstlineno
-        self._cache_path = str(kernel_cache_dir())
+        self._cache_path = cache_path or str(kernel_cache_dir())
 
     def get_cache_path(self):
         return self._cache_path
@@ -153,14 +154,41 @@ class ContentKeyedLocator(caching._CacheLocator):
 
     @classmethod
     def from_function(cls, py_func, py_file):
-        try:
-            if Path(py_file).resolve().parent != PACKAGE:
-                return None
-            locator = cls(py_func, py_file)
-            locator.ensure_cache_path()
-        except OSError:
-            return None  # not writable: numba's own locators decide
-        return locator
+        path = str(kernel_cache_dir())
+        if not _in_package(py_file) or not _usable_folder(path):
+            return None  # not ours, or not writable: numba's own locators decide
+        return cls(py_func, py_file, path)
+
+
+@functools.lru_cache(maxsize=None)
+def _in_package(py_file):
+    """Whether the source file ``py_file`` is one of collide's (asked once per file, not
+    once per function: importing collide creates about 280 compiled functions)."""
+    try:
+        return Path(py_file).resolve().parent == PACKAGE
+    except OSError:
+        return False
+
+
+@functools.lru_cache(maxsize=None)
+def _usable_folder(path):
+    """Whether the kernel folder ``path`` exists or can be made, and can be written (numba's
+    check, a temporary file, once per process rather than once per function)."""
+    try:
+        caching._CacheLocator.ensure_cache_path(_FolderOnly(path))
+    except OSError:
+        return False
+    return True
+
+
+class _FolderOnly:
+    """What _CacheLocator.ensure_cache_path asks of a locator: the folder."""
+
+    def __init__(self, path):
+        self._path = path
+
+    def get_cache_path(self):
+        return self._path
 
 
 @contextmanager

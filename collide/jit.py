@@ -75,9 +75,14 @@ class _EntryKernelCacheImpl(caching.CompileResultCacheImpl):
     """numba's compile-result cache with the library's bitcode replaced by symbol stubs."""
 
     def reduce(self, cres):
-        library, *rest = super().reduce(cres)
-        name, kind, (object_code, bitcode) = library
-        return ((name, kind, (object_code, symbol_stubs(bitcode))), *rest)
+        library, *rest = payload = super().reduce(cres)
+        try:
+            name, kind, (object_code, bitcode) = library
+            if kind != "object" or not isinstance(bitcode, bytes):
+                return payload
+            return ((name, kind, (object_code, symbol_stubs(bitcode))), *rest)
+        except Exception:  # a numba that stores libraries otherwise: its own entry, slower to load
+            return payload
 
 
 class EntryKernelCache(caching.FunctionCache):
@@ -92,7 +97,7 @@ def symbol_stubs(bitcode):
     module = llvm.parse_bitcode(bitcode)
     hidden = (llvm.Linkage.internal, llvm.Linkage.private)
     names = [value.name for values in (module.functions, module.global_variables)
-             for value in values if not value.is_declaration and value.linkage not in hidden]
+             for value in values if not value.is_declaration and value.linkage not in hidden and value.name]
     stubs = "".join(f'define void @"{_llvm_escape(name)}"() {{\n  call void @llvm.trap()\n  unreachable\n}}\n'
                     for name in names)
     return llvm.parse_assembly(stubs + "declare void @llvm.trap()\n").as_bitcode()

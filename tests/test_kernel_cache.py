@@ -312,3 +312,24 @@ def test_entry_kernels_are_stored_as_machine_code_and_symbol_names(two_boxes):
             assert {cres.fndesc.llvm_func_name, cres.fndesc.llvm_cpython_wrapper_name} <= set(defined), name
             checked += 1
     assert checked >= 4
+
+
+def test_symbol_stubs_name_what_other_modules_see_and_trap():
+    """symbol_stubs keeps every visible definition's name (quotes, backslashes, non-ASCII
+    bytes included) as a trapping function, and drops declarations and internal names."""
+    import llvmlite.binding as llvm
+
+    from collide.jit import symbol_stubs
+    source = r"""
+@"glob\22al" = common global i64 0
+@hidden = internal global i64 0
+define i64 @"f\5Cx"() { ret i64 1 }
+define linkonce_odr i64 @"caf\C3\A9"() { ret i64 2 }
+define internal i64 @inner() { ret i64 3 }
+declare i64 @elsewhere()
+"""
+    stubs = llvm.parse_bitcode(symbol_stubs(llvm.parse_assembly(source).as_bitcode()))
+    defined = {f.name: f for f in stubs.functions if not f.is_declaration}
+    assert set(defined) == {'glob"al', "f\\x", "café"}
+    assert all(_trap_only(f) for f in defined.values())
+    assert not any(not g.is_declaration for g in stubs.global_variables)

@@ -95,6 +95,8 @@ def _pack(bits):
     """bool (N, K) -> uint64 (N, ceil(K / 64)), bit k % 64 of word k // 64."""
     n, k = bits.shape
     words = np.zeros((n, (k + 63) // 64), np.uint64)
+    if k == 0:  # no patterns (the usual case)
+        return words
     for j in range(k):
         words[:, j // 64] |= bits[:, j].astype(np.uint64) << np.uint64(j % 64)
     return words
@@ -112,8 +114,8 @@ class Filters(NamedTuple):
         (N,) set extra_ignore, or restricted to pairs within the bool (N,) set only_within."""
         ignore_a, ignore_b = self.ignore_bits
         if extra_ignore is not None:
-            ignore_a = np.column_stack([ignore_a, extra_ignore])
-            ignore_b = np.column_stack([ignore_b, extra_ignore])
+            ignore_a = np.concatenate([ignore_a, extra_ignore[:, None]], axis=1)
+            ignore_b = np.concatenate([ignore_b, extra_ignore[:, None]], axis=1)
         only_a, only_b = self.only_bits
         has_only = bool(self.only)
         if only_within is not None:

@@ -384,7 +384,7 @@ def _static_hits(ps, poses, static, filters, collect):
     """The frame test of the pairs of static objects, at the first frame only (they never
     move): (hits, triangle pairs if collect, [work counts]), (None, None, []) when fewer
     than two objects are static."""
-    if static.sum() < 2:
+    if np.count_nonzero(static) < 2:
         return None, None, []
     hits, pairs, counts = scan_frames(ps, poses, static, filters.kernel_filter(only_within=static), 0, 1, collect,
                                       not collect)
@@ -479,7 +479,10 @@ def _frame_shift(offset):
 
 def _total_counts(counts):
     """Sum of the kernels' work counts (int64 (COUNT_WIDTH,) arrays)."""
-    return np.sum(counts, axis=0) if counts else np.zeros(COUNT_WIDTH, np.int64)
+    total = np.zeros(COUNT_WIDTH, np.int64)
+    for count in counts:  # np.sum of a list first copies it into one array: slower for the few here
+        total += count
+    return total
 
 
 def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
@@ -490,6 +493,8 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
     ``workers`` threads. poses: PoseSource (read a block of those frames at a time)."""
     steps, _, first_found = where
     rows = np.flatnonzero(first_found)
+    if not rows.size:
+        return
     rows = rows[np.argsort(steps[rows], kind="stable")]  # by frame: a frame's contacts share its placed vertices
     frames = steps[rows]
     unique_frames = np.unique(frames)
@@ -548,6 +553,8 @@ def _static_steps(hits, static, n_steps):
     """Swept contacts (ids, fractions) of pairs of static objects: touching at frame 0 means
     touching throughout (the swept kernel skips them since they never move)."""
     first = hits[(hits[:, HIT_FRAME] == 0) & static[hits[:, HIT_A]] & static[hits[:, HIT_B]]]
+    if not first.shape[0]:  # the usual case: no numpy calls for nothing
+        return np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH))
     ids = np.zeros((first.shape[0] * n_steps, SWEPT_WIDTH), np.int64)
     for column, source in ((SWEPT_A, HIT_A), (SWEPT_B, HIT_B), (SWEPT_TRI_A, HIT_TRI_A), (SWEPT_TRI_B, HIT_TRI_B)):
         ids[:, column] = np.repeat(first[:, source], n_steps)

@@ -70,11 +70,12 @@ def _contact_columns(a, b, t_begin, t_end, kind, tri_a, tri_b, times):
     """Contact columns (CONTACT_COLUMNS; points NaN for the caller to fill) of intervals
     given as arrays, already sorted by (a, b, t_begin)."""
     n = a.shape[0]
+    frame_begin, frame_end = frame_of_time(times, np.stack([t_begin, t_end]))
     values = {"object_a": a, "object_b": b, "t_begin": t_begin, "t_end": t_end,
-              "frame_begin": frame_of_time(times, t_begin), "frame_end": frame_of_time(times, t_end),
+              "frame_begin": frame_begin, "frame_end": frame_end,
               "kind": kind, "tri_a": tri_a, "tri_b": tri_b,
               "point_x": np.full(n, np.nan), "point_y": np.full(n, np.nan), "point_z": np.full(n, np.nan)}
-    return {name: np.asarray(values[name]).astype(dtype) for name, dtype in CONTACT_COLUMNS.items()}
+    return {name: np.asarray(values[name]).astype(dtype, copy=False) for name, dtype in CONTACT_COLUMNS.items()}
 
 
 def _new_pair(a, b):
@@ -110,7 +111,7 @@ def step_time(times, step, u, direction):
     """Absolute times (float64 arrays) of fractions u of steps (frame step -> step + 1):
     exact at u = 0 and 1, otherwise times[step] + u (times[step + 1] - times[step]) moved
     one float toward ``direction`` (-inf for a begin, inf for an end), the conservative
-    side of its rounding."""
+    side of its rounding. step, u and direction broadcast against each other."""
     step = np.asarray(step, dtype=np.int64)
     u = np.asarray(u, dtype=np.float64)
     after = times[np.minimum(step + 1, times.shape[0] - 1)]
@@ -135,20 +136,19 @@ def intervals_from_steps(ids, fractions, hits, times):
     ids = np.asarray(ids, dtype=np.int64).reshape(-1, SWEPT_WIDTH)
     fractions = np.asarray(fractions, dtype=np.float64).reshape(-1, TIMES_WIDTH)
     hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
+    # one row per item, swept contacts first, then frame hits (few numpy calls: a short
+    # scan's post-processing is mostly their fixed cost)
+    items = np.concatenate([ids[:, _SWEPT_ITEM], hits[:, _HIT_ITEM]])
     hit_time = times[hits[:, HIT_FRAME]]
-    a = np.concatenate([ids[:, SWEPT_A], hits[:, HIT_A]])
-    b = np.concatenate([ids[:, SWEPT_B], hits[:, HIT_B]])
-    t0 = np.concatenate([step_time(times, ids[:, SWEPT_STEP], fractions[:, T_BEGIN], -np.inf), hit_time])
-    t1 = np.concatenate([step_time(times, ids[:, SWEPT_STEP], fractions[:, T_END], np.inf), hit_time])
-    tri_a = np.concatenate([ids[:, SWEPT_TRI_A], hits[:, HIT_TRI_A]])
-    tri_b = np.concatenate([ids[:, SWEPT_TRI_B], hits[:, HIT_TRI_B]])
-    is_frame = np.concatenate([np.zeros(ids.shape[0], bool), np.ones(hits.shape[0], bool)])
+    swept_time = step_time(times, ids[:, SWEPT_STEP, None], fractions[:, [T_BEGIN, T_END]], _OUTWARD)
+    t0 = np.concatenate([swept_time[:, 0], hit_time])
+    t1 = np.concatenate([swept_time[:, 1], hit_time])
+    is_frame = np.arange(items.shape[0]) >= ids.shape[0]
     first_found = np.concatenate([np.zeros(ids.shape[0], bool), hits[:, HIT_SMALLEST] == 0])
-    step = np.concatenate([ids[:, SWEPT_STEP], hits[:, HIT_FRAME]])
     u = np.concatenate([fractions[:, T_BEGIN], np.zeros(hits.shape[0])])
-    order = merge_order(a, b, t0, is_frame, tri_a, tri_b)
-    a, b, t0, t1, tri_a, tri_b, is_frame, first_found, step, u = (
-        x[order] for x in (a, b, t0, t1, tri_a, tri_b, is_frame, first_found, step, u))
+    order = merge_order(items[:, 0], items[:, 1], t0, is_frame, items[:, 2], items[:, 3])
+    items, t0, t1, is_frame, first_found, u = (x[order] for x in (items, t0, t1, is_frame, first_found, u))
+    a, b, tri_a, tri_b, step = items.T
     new_pair = _new_pair(a, b)
     reach = _running_max_by_group(t1, np.flatnonzero(new_pair))   # latest end so far within each pair
     starts = new_pair.copy()
@@ -159,6 +159,13 @@ def intervals_from_steps(ids, fractions, hits, times):
     kind = np.where(seen_at_frame, KIND_FRAME, KIND_SWEPT)
     columns = _contact_columns(a[first], b[first], t0[first], t_end, kind, tri_a[first], tri_b[first], times)
     return columns, Where(step[first], u[first], first_found[first])
+
+
+#: columns of swept rows and of frame hits that make an item: a, b, tri_a, tri_b, step (frame)
+_SWEPT_ITEM = [SWEPT_A, SWEPT_B, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_STEP]
+_HIT_ITEM = [HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_FRAME]
+#: step_time's direction for (begin, end): each rounded outward
+_OUTWARD = np.array([-np.inf, np.inf])
 
 
 def merge_order(a, b, t0, is_frame, tri_a, tri_b):

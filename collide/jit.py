@@ -15,11 +15,15 @@ if numba's own variable is set; else ``kernels/`` in collide's cache folder
 (``COLLIDE_CACHE_DIR``, default the platform's user cache: ``~/.cache/collide`` on
 Linux). Inside: ``<collide version>-<source digest>-py<X.Y>-numba<version>``. A folder
 that cannot be written leaves numba's own choice (next to the sources, or its
-per-user cache).
+per-user cache). Each process marks its folder used (its modification time); making a
+new folder deletes all but the KEEP_KERNEL_FOLDERS most recently used, so upgrades
+do not pile up 20-30 MB of compiled kernels each.
 """
 import functools
 import hashlib
 import os
+import re
+import shutil
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -178,12 +182,47 @@ def _in_package(py_file):
 @functools.lru_cache(maxsize=None)
 def _usable_folder(path):
     """Whether the kernel folder ``path`` exists or can be made, and can be written (numba's
-    check, a temporary file, once per process rather than once per function)."""
+    check, a temporary file, once per process rather than once per function). Marks it
+    used; when it is new, prunes the other kernel folders next to it."""
+    new = not os.path.isdir(path)
     try:
         caching._CacheLocator.ensure_cache_path(_FolderOnly(path))
+        os.utime(path)
     except OSError:
         return False
+    if new:
+        prune_kernel_folders(Path(path).parent)
     return True
+
+
+#: kernel folders kept when a new one is made: it and the most recently used others (other
+#: collide versions or environments sharing the cache folder)
+KEEP_KERNEL_FOLDERS = 3
+
+#: the names kernel_cache_dir gives: nothing else in the cache folder is ever deleted
+_KERNEL_FOLDER_NAME = re.compile(r"[^-]+-[0-9a-f]{16}-py[0-9]+\.[0-9]+-numba[^/]+")
+
+
+def prune_kernel_folders(root, keep=KEEP_KERNEL_FOLDERS):
+    """Delete all but the ``keep`` most recently used kernel folders in ``root`` (named as
+    kernel_cache_dir names them; last use: modification time). Other entries are left
+    alone, and what cannot be deleted stays (housekeeping never fails a scan). Returns
+    the paths deleted."""
+    try:
+        entries = list(os.scandir(root))
+    except OSError:
+        return []
+    folders = []
+    for entry in entries:
+        try:
+            if _KERNEL_FOLDER_NAME.fullmatch(entry.name) and entry.is_dir(follow_symlinks=False):
+                folders.append((entry.stat(follow_symlinks=False).st_mtime, entry.path))
+        except OSError:
+            continue
+    folders.sort(reverse=True)
+    for _, path in folders[keep:]:
+        shutil.rmtree(path, ignore_errors=True)
+    return [path for _, path in folders[keep:]]
 
 
 class _FolderOnly:

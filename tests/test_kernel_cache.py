@@ -12,6 +12,7 @@ import subprocess
 import sys
 import textwrap
 import types as pytypes
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -333,3 +334,34 @@ declare i64 @elsewhere()
     assert set(defined) == {'glob"al', "f\\x", "café"}
     assert all(_trap_only(f) for f in defined.values())
     assert not any(not g.is_declaration for g in stubs.global_variables)
+
+
+def test_a_new_kernel_folder_prunes_all_but_the_most_recently_used(tmp_path):
+    """Making a kernel folder deletes the kernel folders next to it beyond the
+    KEEP_KERNEL_FOLDERS most recently used (modification times); other entries stay, and
+    a run that finds its folder there deletes nothing and marks it used."""
+    from collide.jit import KEEP_KERNEL_FOLDERS
+    kernels = tmp_path / "kernels"
+    old = [kernels / f"0.0.{k}-{k:016x}-py3.11-numba0.60.0" for k in range(KEEP_KERNEL_FOLDERS + 2)]
+    for age, folder in enumerate(old):  # old[0] used last
+        folder.mkdir(parents=True)
+        (folder / "kernel.nbi").write_bytes(b"compiled")
+        os.utime(folder, (1e9 - 1000 * age, 1e9 - 1000 * age))
+    strangers = ["notes", "0.0.9-not-a-digest-py3.11-numba0.60.0"]
+    for name in strangers:
+        (kernels / name).mkdir()
+        os.utime(kernels / name, (1.0, 1.0))
+    (kernels / "0.0.8-0000000000000008-py3.11-numba0.60.0").write_text("a file, not a folder")
+    new = Path(probe(copy_package(tmp_path / "one"), kernels)["folder"])
+    assert new.parent == kernels
+    kept_old = [f.name for f in old[:KEEP_KERNEL_FOLDERS - 1]]  # with the new folder: KEEP_KERNEL_FOLDERS
+    assert sorted(p.name for p in kernels.iterdir()) == sorted(
+        [new.name, *kept_old, *strangers, "0.0.8-0000000000000008-py3.11-numba0.60.0"])
+
+    for folder in old:
+        folder.mkdir(exist_ok=True)
+        os.utime(folder, (1e9, 1e9))
+    os.utime(new, (1e9 - 10_000, 1e9 - 10_000))  # the oldest now; this run finds it
+    probe(copy_package(tmp_path / "two"), kernels)
+    assert all(folder.is_dir() for folder in old) and new.is_dir()
+    assert new.stat().st_mtime > 1e9 + 1000  # marked used

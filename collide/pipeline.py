@@ -752,7 +752,7 @@ def _finish_warm_up(compiling):
     workers, own = compiling
     processes = len(workers.processes)
     announce(f"compiling collide's numba kernels for this machine here and in {processes} more "
-             f"process{'es' if processes > 1 else ''} (first run only: about a minute; later runs load them "
+             f"process{'es' if processes > 1 else ''} (first run only: a minute or two; later runs load them "
              f"from {kernel_cache_dir()})")
     try:
         for unit in own:

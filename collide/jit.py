@@ -16,8 +16,9 @@ if numba's own variable is set; else ``kernels/`` in collide's cache folder
 Linux). Inside: ``<collide version>-<source digest>-py<X.Y>-numba<version>``. A folder
 that cannot be written leaves numba's own choice (next to the sources, or its
 per-user cache). Each process marks its folder used (its modification time); making a
-new folder deletes all but the KEEP_KERNEL_FOLDERS most recently used, so upgrades
-do not pile up 20-30 MB of compiled kernels each.
+new folder deletes older folders of the same Python and numba versions beyond the
+KEEP_KERNEL_FOLDERS most recently used and unused for a day (prune_kernel_folders),
+so upgrades do not pile up 20-30 MB of compiled kernels each.
 """
 import functools
 import hashlib
@@ -25,6 +26,7 @@ import os
 import re
 import shutil
 import sys
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -183,46 +185,68 @@ def _in_package(py_file):
 def _usable_folder(path):
     """Whether the kernel folder ``path`` exists or can be made, and can be written (numba's
     check, a temporary file, once per process rather than once per function). Marks it
-    used; when it is new, prunes the other kernel folders next to it."""
+    used; when it is new, prunes old kernel folders next to it (prune_kernel_folders)."""
     new = not os.path.isdir(path)
     try:
         caching._CacheLocator.ensure_cache_path(_FolderOnly(path))
-        os.utime(path)
     except OSError:
         return False
+    try:
+        os.utime(path)  # last use (best effort: a folder whose time cannot be set still caches)
+    except OSError:
+        pass
     if new:
-        prune_kernel_folders(Path(path).parent)
+        prune_kernel_folders(path)
     return True
 
 
-#: kernel folders kept when a new one is made: it and the most recently used others (other
-#: collide versions or environments sharing the cache folder)
+#: kernel folders of one Python and numba version kept when a new one is made: it and the
+#: most recently used others (other collide versions)
 KEEP_KERNEL_FOLDERS = 3
+#: a kernel folder used this recently (seconds) is never deleted: a process may be using it
+KEEP_RECENT_SECONDS = 24 * 3600
 
-#: the names kernel_cache_dir gives: nothing else in the cache folder is ever deleted
-_KERNEL_FOLDER_NAME = re.compile(r"[^-]+-[0-9a-f]{16}-py[0-9]+\.[0-9]+-numba[^/]+")
+#: the names kernel_cache_dir gives: <version>-<16 hex digits>-<py and numba tag>
+_KERNEL_FOLDER_NAME = re.compile(r"[0-9][0-9A-Za-z.+_!]*-[0-9a-f]{16}-(py[0-9]+\.[0-9]+-numba[0-9].*)")
 
 
-def prune_kernel_folders(root, keep=KEEP_KERNEL_FOLDERS):
-    """Delete all but the ``keep`` most recently used kernel folders in ``root`` (named as
-    kernel_cache_dir names them; last use: modification time). Other entries are left
-    alone, and what cannot be deleted stays (housekeeping never fails a scan). Returns
+def prune_kernel_folders(current, keep=KEEP_KERNEL_FOLDERS, recent=KEEP_RECENT_SECONDS):
+    """Delete the kernel folders next to the kernel folder ``current`` that belong to the
+    same Python and numba versions (the end of their names), come after the ``keep``
+    most recently used (modification time, ``current`` counted) and have not been used
+    for ``recent`` seconds. Never ``current`` itself, nor folders of other Python or
+    numba versions (other environments sharing the cache, used in turn, would otherwise
+    compile afresh every time), nor anything not named as kernel_cache_dir names
+    folders. What cannot be deleted stays (housekeeping never fails a scan). Returns
     the paths deleted."""
+    current = Path(current)
+    match = _KERNEL_FOLDER_NAME.fullmatch(current.name)
+    if match is None:
+        return []
     try:
-        entries = list(os.scandir(root))
+        entries = list(os.scandir(current.parent))
     except OSError:
         return []
     folders = []
     for entry in entries:
+        other = _KERNEL_FOLDER_NAME.fullmatch(entry.name)
+        if other is None or other.group(1) != match.group(1):
+            continue
         try:
-            if _KERNEL_FOLDER_NAME.fullmatch(entry.name) and entry.is_dir(follow_symlinks=False):
+            if entry.is_dir(follow_symlinks=False):
                 folders.append((entry.stat(follow_symlinks=False).st_mtime, entry.path))
         except OSError:
             continue
     folders.sort(reverse=True)
-    for _, path in folders[keep:]:
+    now = time.time()
+    deleted = []
+    for used, path in folders[keep:]:
+        if now - used < recent or Path(path) == current:
+            continue
         shutil.rmtree(path, ignore_errors=True)
-    return [path for _, path in folders[keep:]]
+        if not os.path.lexists(path):
+            deleted.append(path)
+    return deleted
 
 
 class _FolderOnly:

@@ -1,7 +1,7 @@
 """Truthful start-up messages: say so when numba really compiles collide's kernels.
 
 The first run on a machine (or after collide changed, or with a new numba cache folder)
-compiles the numba kernels, which takes about a minute with no other sign of life;
+compiles the numba kernels, which takes a minute or two with no other sign of life;
 later runs load them from numba's cache in a fraction of a second. ``compile_notice``
 listens to numba's own compile events (``numba.core.event``, kind ``"numba:compile"``)
 while a scan prepares its kernels, so the notice appears exactly when numba compiles,
@@ -29,7 +29,7 @@ from .errors import escape_text
 
 log = logging.getLogger("collide")
 
-NOTICE = ("compiling collide's numba kernels for this machine (first run only: a minute or more; "
+NOTICE = ("compiling collide's numba kernels for this machine (first run only: a minute or two; "
           "later runs load them from numba's cache{where})")
 
 _settings = {"stream": None, "live": False}

@@ -11,6 +11,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import time
 import types as pytypes
 from pathlib import Path
 
@@ -336,32 +337,62 @@ declare i64 @elsewhere()
     assert not any(not g.is_declaration for g in stubs.global_variables)
 
 
-def test_a_new_kernel_folder_prunes_all_but_the_most_recently_used(tmp_path):
-    """Making a kernel folder deletes the kernel folders next to it beyond the
-    KEEP_KERNEL_FOLDERS most recently used (modification times); other entries stay, and
-    a run that finds its folder there deletes nothing and marks it used."""
-    from collide.jit import KEEP_KERNEL_FOLDERS
+def test_a_new_kernel_folder_prunes_old_folders_of_its_python_and_numba(tmp_path):
+    """Making a kernel folder deletes the folders next to it of the same Python and numba
+    versions beyond the KEEP_KERNEL_FOLDERS most recently used (modification times)
+    that were not used within KEEP_RECENT_SECONDS; folders of another Python or numba
+    (other environments), recently used ones and other entries stay, and a run that
+    finds its folder deletes nothing and marks it used."""
+    from collide.jit import KEEP_KERNEL_FOLDERS, KEEP_RECENT_SECONDS, kernel_cache_dir
     kernels = tmp_path / "kernels"
-    old = [kernels / f"0.0.{k}-{k:016x}-py3.11-numba0.60.0" for k in range(KEEP_KERNEL_FOLDERS + 2)]
-    for age, folder in enumerate(old):  # old[0] used last
+    tag = kernel_cache_dir().name.split("-", 2)[2]  # py<X.Y>-numba<version>
+    old = [kernels / f"0.0.{k}-{k:016x}-{tag}" for k in range(KEEP_KERNEL_FOLDERS + 2)]
+    for age, folder in enumerate(old):  # old[0] used last, all of them long ago
         folder.mkdir(parents=True)
         (folder / "kernel.nbi").write_bytes(b"compiled")
         os.utime(folder, (1e9 - 1000 * age, 1e9 - 1000 * age))
-    strangers = ["notes", "0.0.9-not-a-digest-py3.11-numba0.60.0"]
+    recent = [kernels / f"0.1.{k}-{k + 20:016x}-{tag}" for k in range(KEEP_KERNEL_FOLDERS)]
+    for hours, folder in enumerate(recent, 1):  # the last one beyond the kept number, but used hours ago
+        folder.mkdir()
+        os.utime(folder, (time.time() - 3600 * hours, time.time() - 3600 * hours))
+    strangers = ["notes", f"0.0.9-not-a-digest-{tag}", f"0.0.6-{6:016x}-py2.7-numba0.1.0",
+                 f"0.0.5-{5:016x}-{tag}.bak"]
     for name in strangers:
         (kernels / name).mkdir()
         os.utime(kernels / name, (1.0, 1.0))
-    (kernels / "0.0.8-0000000000000008-py3.11-numba0.60.0").write_text("a file, not a folder")
+    (kernels / f"0.0.8-{8:016x}-{tag}").write_text("a file, not a folder")
     new = Path(probe(copy_package(tmp_path / "one"), kernels)["folder"])
-    assert new.parent == kernels
-    kept_old = [f.name for f in old[:KEEP_KERNEL_FOLDERS - 1]]  # with the new folder: KEEP_KERNEL_FOLDERS
+    assert new.parent == kernels and new.name.endswith(tag)
+    # kept: the new folder and the recent ones (used within KEEP_RECENT_SECONDS); every old one goes
+    assert 3600 * len(recent) < KEEP_RECENT_SECONDS
     assert sorted(p.name for p in kernels.iterdir()) == sorted(
-        [new.name, *kept_old, *strangers, "0.0.8-0000000000000008-py3.11-numba0.60.0"])
+        [new.name, *(f.name for f in recent), *strangers, f"0.0.8-{8:016x}-{tag}"])
+    for folder in recent:
+        shutil.rmtree(folder)
 
-    for folder in old:
-        folder.mkdir(exist_ok=True)
+    for folder in old:  # old ones back, more recent than the new folder
+        folder.mkdir()
         os.utime(folder, (1e9, 1e9))
     os.utime(new, (1e9 - 10_000, 1e9 - 10_000))  # the oldest now; this run finds it
     probe(copy_package(tmp_path / "two"), kernels)
     assert all(folder.is_dir() for folder in old) and new.is_dir()
     assert new.stat().st_mtime > 1e9 + 1000  # marked used
+
+
+def test_pruning_never_deletes_the_folder_in_use(tmp_path):
+    """The current folder stays even when others look more recently used (a clock ahead,
+    a restored cache); only the old folders beyond the kept number go."""
+    from collide.jit import KEEP_KERNEL_FOLDERS, prune_kernel_folders
+    tag = "py3.11-numba0.68.1"
+    current = tmp_path / f"0.2.0-{1:016x}-{tag}"
+    current.mkdir()
+    os.utime(current, (1e9, 1e9))
+    future = [tmp_path / f"0.3.{k}-{k:016x}-{tag}" for k in range(KEEP_KERNEL_FOLDERS)]
+    older = tmp_path / f"0.1.0-{2:016x}-{tag}"
+    for folder in future:
+        folder.mkdir()
+        os.utime(folder, (4e9, 4e9))
+    older.mkdir()
+    os.utime(older, (1e6, 1e6))
+    assert prune_kernel_folders(current) == [str(older)]
+    assert current.is_dir() and all(f.is_dir() for f in future) and not older.exists()

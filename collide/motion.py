@@ -60,8 +60,11 @@ through the path's positions at a and b); no answer means no contact in [a, b]. 
 answer tau means no contact before tau; once ``dev h^2 <= dist_tol / 4`` the answer is
 final: never after the first contact, at most ``time_tol`` (of the step) before a time
 at which the screw-moved triangles are within dist_tol + 2 eta + the CCD's rounding
-bound. Otherwise [tau, b] is halved and searched, earlier half first. Only sub-steps
-that still report something are refined, and each level cuts dev h^2 by at least 4.
+bound. Otherwise [tau, b] is searched in two parts, the one next to tau first: a piece
+of length ``SUB_STEP_PIECE h`` (dev h^2 cut by 16; or the length at which the answer is
+final, if that is longer), then the rest (at most 3/4 h: cut by at least 1.7). Only
+sub-steps that still report something are refined. (Halving [tau, b] instead took half
+as many searches again at 1000 bodies: the contact is usually close to tau.)
 Before its search, a sub-step's chords are checked against their moving-box window
 (windows.swept_window: boxes and both triangles' normals, margin tol): a sub-step with
 no window holds no contact, and one whose window covers at most SHRINK_WINDOW of it is
@@ -105,8 +108,11 @@ COARSE_TIME_TOL = 0.5
 #: it is replaced by that window (a quarter shorter at least: the search makes progress)
 SHRINK_WINDOW = 0.75
 #: a triangle-pair search splits at most this many sub-steps before giving its
-#: conservative answer (never reached in practice: each split cuts the bound by 4)
+#: conservative answer (never reached in practice: each split cuts the bound by at least 1.7)
 MAX_SUBSTEPS = 4096
+#: after a search of a sub-step of length h answers tau, the rest of it is searched as a
+#: piece of SUB_STEP_PIECE h next to tau, then what is left (module docstring)
+SUB_STEP_PIECE = 0.25
 
 
 # --- screw parameters -----------------------------------------------------------------------------
@@ -529,6 +535,14 @@ def triangle_pair_contact(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol
 
 
 @njit_borrowing
+def _next_piece(h, dev, dist_tol):
+    """Length (fraction of the step) of the piece searched next after a sub-step of length h
+    answered (dev: the pair's deviation bound over the whole step, dev > 0): SUB_STEP_PIECE h,
+    or, if longer, about the longest piece whose answer is final (dev piece^2 <= dist_tol / 4)."""
+    return max(SUB_STEP_PIECE * h, math.sqrt(0.25 * dist_tol / dev) * (1.0 - 2.0 ** -20))
+
+
+@njit_borrowing
 def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit, backwards, work, counts):
     """The sub-step refinement of the module docstring. Forwards: earliest contact up to
     limit; backwards: latest contact from limit on (the same search with time running
@@ -587,13 +601,14 @@ def _first_on_path(m_p, m_q, p0, p1, q0, q1, dev, eta, time_tol, dist_tol, limit
             return t
         splits += 1
         counts[COUNT_SPLITS] += 1
-        # search what is left, [t, b] (backwards: [a, t]), in two halves, the earlier in time first
+        # search what is left, [t, b] (backwards: [a, t]): the piece next to t first, then the rest
+        piece = min(_next_piece(h, dev, dist_tol), 0.5 * ((t - a) if backwards else (b - t)))
         if backwards:
-            mid = a + 0.5 * (t - a)
+            mid = t - piece
             stack[n, 0], stack[n, 1] = a, mid
             stack[n + 1, 0], stack[n + 1, 1] = mid, t
         else:
-            mid = t + 0.5 * (b - t)
+            mid = t + piece
             stack[n, 0], stack[n, 1] = mid, b
             stack[n + 1, 0], stack[n + 1, 1] = t, mid
         n += 2

@@ -59,6 +59,7 @@ a chunk's frame 0, see scan_intervals); ids int64 (R,
 SWEPT_WIDTH): step k, object_a, object_b, tri_a, tri_b (the pair touching first);
 times float64 (R, TIMES_WIDTH): t_begin, t_end, fractions of the step.
 """
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -223,6 +224,102 @@ def spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates):
         t_lo, t_hi = sphere_overlap_window(s, v, r)
         meet[c] = t_lo <= t_hi
     return meet
+
+
+#: apart_along_centres reads the vertices of object pairs whose meshes have at most this many
+#: together (each twice); larger pairs get only its test of their root boxes
+AXIS_TEST_VERTICES = 1024
+
+
+@njit_borrowing
+def apart_along_centres(ps, rp0, rp1, motion, margin, dist_tol, a, b):
+    """Objects a and b stay apart all over the step along the line through their sphere
+    centres at mid-step (unit direction d, from a to b): every point of a stays below
+    every point of b along d by more than dist_tol plus both rounding margins (N,).
+
+    Why this holds: a point's chord projects on d linearly in t, so between its values
+    at both ends; the point itself stays within its object's deviation bound of its
+    chord (0 for linear-vertex motion); a triangle's points are convex combinations of
+    its corners. So a's points stay below max over a's vertices and both ends of d . x
+    plus a's bound, b's above the matching minimum minus b's. The root boxes are tried
+    first (they hold the vertices: a weaker bound, but O(1)); then the vertices, for
+    meshes with at most AXIS_TEST_VERTICES together. Unused vertices only weaken it.
+    Shapes whose bounding spheres meet while they do not touch (boxes, ellipsoids,
+    bodies side by side) are told apart here without a descent."""
+    mesh_a = ps.object_mesh[a]
+    mesh_b = ps.object_mesh[b]
+    ca0 = _world_centre(ps.centre, mesh_a, rp0, a)
+    ca1 = _world_centre(ps.centre, mesh_a, rp1, a)
+    cb0 = _world_centre(ps.centre, mesh_b, rp0, b)
+    cb1 = _world_centre(ps.centre, mesh_b, rp1, b)
+    d0 = (cb0[0] + cb1[0]) - (ca0[0] + ca1[0])
+    d1 = (cb0[1] + cb1[1]) - (ca0[1] + ca1[1])
+    d2 = (cb0[2] + cb1[2]) - (ca0[2] + ca1[2])
+    length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if not length > 0.0:
+        return False
+    d = (d0 / length, d1 / length, d2 / length)
+    minus_d = (-d[0], -d[1], -d[2])
+    gap = (_object_deviation(ps, motion[a], mesh_a, ca0) + _object_deviation(ps, motion[b], mesh_b, cb0)
+           + margin[a] + margin[b] + dist_tol)
+    # first the meshes' root boxes (exact for box-shaped meshes), then their vertices
+    top_a = max(_box_highest_along(ps, mesh_a, rp0[a], d), _box_highest_along(ps, mesh_a, rp1[a], d))
+    bottom_b = -max(_box_highest_along(ps, mesh_b, rp0[b], minus_d), _box_highest_along(ps, mesh_b, rp1[b], minus_d))
+    if top_a + gap < bottom_b:
+        return True
+    if (ps.vert_start[mesh_a + 1] - ps.vert_start[mesh_a] + ps.vert_start[mesh_b + 1] - ps.vert_start[mesh_b]
+            > AXIS_TEST_VERTICES):
+        return False
+    top_a = max(_highest_along(ps, mesh_a, rp0[a], d), _highest_along(ps, mesh_a, rp1[a], d))
+    bottom_b = -max(_highest_along(ps, mesh_b, rp0[b], minus_d), _highest_along(ps, mesh_b, rp1[b], minus_d))
+    return top_a + gap < bottom_b
+
+
+@njit_borrowing
+def _body_direction(pose, d):
+    """R^T d (3-tuple) for pose [R | p] (3, 4) and a world direction d (3-tuple)."""
+    return (pose[0, 0] * d[0] + pose[1, 0] * d[1] + pose[2, 0] * d[2],
+            pose[0, 1] * d[0] + pose[1, 1] * d[1] + pose[2, 1] * d[2],
+            pose[0, 2] * d[0] + pose[1, 2] * d[1] + pose[2, 2] * d[2])
+
+
+@njit_borrowing
+def _box_highest_along(ps, mesh, pose, d):
+    """An upper bound of _highest_along from the mesh's root box: its centre's d . x plus
+    its half extents against |R^T d| (exact when the mesh reaches its box's corners)."""
+    e = _body_direction(pose, d)
+    node = ps.root[mesh]
+    top = pose[0, 3] * d[0] + pose[1, 3] * d[1] + pose[2, 3] * d[2]
+    for i in range(3):
+        lo = ps.node_lo[node, i]
+        hi = ps.node_hi[node, i]
+        top += 0.5 * (lo + hi) * e[i] + 0.5 * (hi - lo) * abs(e[i])
+    return top
+
+
+@njit_borrowing
+def _highest_along(ps, mesh, pose, d):
+    """Largest d . x (length units) over the vertices x of mesh placed by pose (3, 4);
+    d a unit 3-tuple. Computed as (R^T d) . v + d . p: within a few ulps of |v| + |p| of
+    the placed vertices' projection, far inside the objects' rounding margins."""
+    e0, e1, e2 = _body_direction(pose, d)
+    vertices = ps.vertices
+    best = -np.inf
+    for v in range(ps.vert_start[mesh], ps.vert_start[mesh + 1]):
+        best = max(best, e0 * vertices[v, 0] + e1 * vertices[v, 1] + e2 * vertices[v, 2])
+    return best + (pose[0, 3] * d[0] + pose[1, 3] * d[1] + pose[2, 3] * d[2])
+
+
+@njit_borrowing
+def _object_deviation(ps, m, mesh, centre):
+    """Deviation bound (length units, rounding margin m[M_ETA] included) of every point of
+    the mesh's bounding sphere, whose world centre at t = 0 is centre (3-tuple), under
+    motion row m: the centre's bound with rho grown by the sphere's radius; 0 for
+    linear-vertex motion."""
+    if m[M_THETA] == 0.0:
+        return 0.0
+    return sphere_deviation(m, centre) + 0.125 * m[M_THETA] * m[M_THETA] * ps.sphere_radius[mesh] * (
+        1.0 + 2.0 ** -40) + m[M_ETA]
 
 
 class Buffers(NamedTuple):
@@ -686,7 +783,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 touch1 = False
             if touch0 and touch1:  # the whole step
                 t_first, t_last, tri_a, tri_b = 0.0, 1.0, tris0[row0, 0], tris0[row0, 1]
-            elif not (touch0 or touch1) and not meet[c]:
+            elif not (touch0 or touch1) and (not meet[c] or apart_along_centres(ps, rp0, rp1, motion, margin,
+                                                                                 dist_tol, a, b)):
                 continue  # apart all along, so at the step's last frame too
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(

@@ -373,6 +373,97 @@ def test_random_turning_boxes_lose_no_sampled_contact(tmp_path, seed):
         assert min(gaps) < 1e-5, (begin, gaps)   # the boxes move < 10 units per frame: 1e-6 of it
 
 
+def _moved_poses(rng, centre, angle):
+    """Poses (2, 3, 4) at both ends of a step: a random start near centre, then a turn of
+    up to ``angle`` radians about a random axis and a small shift."""
+    start = transform(rot(rng.normal(size=3), rng.uniform(0, np.pi)), centre + rng.uniform(-0.1, 0.1, 3))
+    end = transform(rot(rng.normal(size=3), rng.uniform(0, angle)), rng.uniform(-0.15, 0.15, 3)) @ start
+    return start, end
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_centre_line_test_never_parts_objects_that_touch(seed):
+    """swept.apart_along_centres (the cull before a pair's swept descent) against dense
+    sampling of the exact screw motion (scipy) with the exact triangle predicate: a box
+    and an ellipsoid, turning up to 45 degrees per step, placed so that their bounding
+    spheres overlap. No pair it calls apart touches at any of 201 moments; it does call
+    apart many pairs that come close (it culls), and leaves every touching pair alone."""
+    import trimesh
+
+    from collide.discrete import object_margins
+    from collide.load import Mesh
+    from collide.motion import INTERPOLATIONS, MOTION_WIDTH, step_motions
+    from collide.packed import pack_scene
+    from collide.swept import apart_along_centres
+
+    fcl = pytest.importorskip("fcl")
+    from fcl_poses import fcl_model
+
+    rng = np.random.default_rng(40 + seed)
+    box = trimesh.creation.box(extents=(1.0, 0.3, 0.2))
+    ball = trimesh.creation.icosphere(subdivisions=2)
+    ball.apply_scale((0.45, 0.3, 0.2))
+    meshes = [Mesh(name, None, np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
+              for name, m in (("box", box), ("ball", ball))]
+    ps, _ = pack_scene(meshes, np.array([0, 1]))
+    models = [fcl_model(fcl, m) for m in meshes]
+    reach = ps.sphere_radius.sum()
+    samples = np.linspace(0.0, 1.0, 201)
+
+    def touch_at(ends, t):  # screw_reference, each motion's logarithm taken once
+        placed = [scipy_linalg.expm(t * twist) @ e[0] for twist, e in zip(twists, ends)]
+        objects = [fcl.CollisionObject(m, fcl.Transform(p[:3, :3], p[:3, 3])) for m, p in zip(models, placed)]
+        return fcl.collide(*objects, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
+
+    apart = touching = 0
+    for _ in range(100):
+        direction = rng.normal(size=3)
+        offset = direction / np.linalg.norm(direction) * rng.uniform(0.3, 1.0) * reach
+        ends = [_moved_poses(rng, np.zeros(3), np.radians(45)), _moved_poses(rng, offset, np.radians(45))]
+        poses = np.ascontiguousarray(np.array([[e[i][:3] for e in ends] for i in (0, 1)]))
+        margin = np.empty(2)
+        rows = np.empty((2, MOTION_WIDTH))
+        object_margins(ps, poses[0], poses[1], margin)
+        step_motions(INTERPOLATIONS["screw"], poses[0], poses[1], margin, rows)
+        said_apart = apart_along_centres(ps, poses[0], poses[1], rows, margin, 1e-9, 0, 1)
+        twists = [np.real(scipy_linalg.logm(e[1] @ np.linalg.inv(e[0]))) for e in ends]
+        touches = any(touch_at(ends, t) for t in samples)
+        assert not (said_apart and touches)
+        apart += said_apart
+        touching += touches
+    assert apart >= 10 and touching >= 10, (apart, touching)  # both kinds occur: the check above is not empty
+
+
+def test_centre_line_test_allows_for_the_arc():
+    """A rod turning 90 degrees about its centre, a small block on the diagonal within the
+    rod's reach: the rod's corners at both frames lie below the block along the centre
+    line, but halfway through the turn the rod points at it. apart_along_centres must
+    keep the pair (the arc's deviation bound), and does part it once the block is beyond
+    the reach."""
+    import trimesh
+
+    from collide.discrete import object_margins
+    from collide.load import Mesh
+    from collide.motion import INTERPOLATIONS, MOTION_WIDTH, step_motions
+    from collide.packed import pack_scene
+    from collide.swept import apart_along_centres
+
+    meshes = [Mesh(name, None, np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
+              for name, m in (("rod", trimesh.creation.box(extents=(2.0, 0.1, 0.1))),
+                              ("block", trimesh.creation.box(extents=(0.1, 0.1, 0.1))))]
+    ps, _ = pack_scene(meshes, np.array([0, 1]))
+    diagonal = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    for distance, expected in ((0.95, False), (1.2, True)):
+        block = transform(np.eye(3), distance * diagonal)
+        poses = np.ascontiguousarray(np.array([[np.eye(4)[:3], block[:3]],
+                                               [transform(rot([0, 0, 1], np.pi / 2), [0, 0, 0])[:3], block[:3]]]))
+        margin = np.empty(2)
+        rows = np.empty((2, MOTION_WIDTH))
+        object_margins(ps, poses[0], poses[1], margin)
+        step_motions(INTERPOLATIONS["screw"], poses[0], poses[1], margin, rows)
+        assert apart_along_centres(ps, poses[0], poses[1], rows, margin, 1e-9, 0, 1) == expected, distance
+
+
 # --- warnings and errors ------------------------------------------------------------------------
 
 def turning_rod(tmp_path, step_deg, n=3):

@@ -13,7 +13,9 @@ kernel for a chunk of steps. Per step:
    over the step, spheres of radius r_a + r_b + dev (dev: both centres'
    deviation bounds) around the chords can only meet when
    (v·v)t² + 2(v·s)t + (s·s − r²) <= 0; a pair whose window misses [0, 1] is
-   skipped;
+   skipped; so is one touching at neither frame that stays apart along the line
+   through its centres (apart_along_centres: root boxes, then vertices, at both
+   frames, widened by the deviation bounds);
 3. BVH leaves: tandem descent with boxes bounding the motion (broad.RULE_SWEPT_RIGID
    under screw motion, RULE_SWEPT under linear-vertex motion);
 4. triangles: certified CCD (narrow.candidates_contact_window) gives the object

@@ -14,7 +14,7 @@ kernel for a chunk of steps. Per step:
    deviation bounds) around the chords can only meet when
    (v·v)t² + 2(v·s)t + (s·s − r²) <= 0; a pair whose window misses [0, 1] is
    skipped; so is one touching at neither frame that stays apart along the line
-   through its centres (apart_along_centres: root boxes, then vertices, at both
+   through its centres (apart_along_axes: root boxes, then vertices, at both
    frames, widened by the deviation bounds);
 3. BVH leaves: tandem descent with boxes bounding the motion (broad.RULE_SWEPT_RIGID
    under screw motion, RULE_SWEPT under linear-vertex motion);
@@ -228,53 +228,98 @@ def spheres_meet(ps, rp0, rp1, motion, margin, dist_tol, candidates):
     return meet
 
 
-#: apart_along_centres reads the vertices of object pairs whose meshes have at most this many
-#: together (each twice); larger pairs get only its test of their root boxes
+#: apart_along_axes reads the vertices of object pairs whose meshes have at most this many
+#: together; larger pairs get only its test of their root boxes along the centre line
 AXIS_TEST_VERTICES = 1024
 
 
+@njit(cache=True)
+def boxed_meshes(ps):
+    """bool (M,): the meshes of at most AXIS_TEST_VERTICES vertices that have a vertex at
+    each corner of their root box (so the box is their convex hull, and its extent along
+    any direction is theirs: apart_along_axes need not read their vertices)."""
+    n_meshes = ps.root.shape[0]
+    boxed = np.zeros(n_meshes, np.bool_)
+    for mesh in range(n_meshes):
+        first, stop = ps.vert_start[mesh], ps.vert_start[mesh + 1]
+        if stop - first > AXIS_TEST_VERTICES:
+            continue
+        node = ps.root[mesh]
+        found = 0  # bit c: a vertex sits on corner c (bit i of c: hi along axis i)
+        for v in range(first, stop):
+            corner = 0
+            for i in range(3):
+                if ps.vertices[v, i] == ps.node_hi[node, i]:
+                    corner |= 1 << i
+                elif ps.vertices[v, i] != ps.node_lo[node, i]:
+                    corner = -1
+                    break
+            if corner >= 0:
+                found |= 1 << corner
+        boxed[mesh] = found == 255
+    return boxed
+
+
 @njit_borrowing
-def apart_along_centres(ps, rp0, rp1, motion, margin, dist_tol, a, b):
-    """Objects a and b stay apart all over the step along the line through their sphere
-    centres at mid-step (unit direction d, from a to b): every point of a stays below
-    every point of b along d by more than dist_tol plus both rounding margins (N,).
+def apart_along_axes(ps, boxed, rp0, rp1, motion, margin, dist_tol, a, b):
+    """Objects a and b stay apart all over the step along some simple direction d: every
+    point of one stays below every point of the other along d by more than dist_tol plus
+    both rounding margins (N,). Directions tried: the line through their sphere centres
+    at mid-step, then the axes of both objects' body frames at the step's start.
 
     Why this holds: a point's chord projects on d linearly in t, so between its values
     at both ends; the point itself stays within its object's deviation bound of its
     chord (0 for linear-vertex motion); a triangle's points are convex combinations of
-    its corners. So a's points stay below max over a's vertices and both ends of d . x
-    plus a's bound, b's above the matching minimum minus b's. The root boxes are tried
-    first (they hold the vertices: a weaker bound, but O(1)); then the vertices, for
-    meshes with at most AXIS_TEST_VERTICES together. Unused vertices only weaken it.
-    Shapes whose bounding spheres meet while they do not touch (boxes, ellipsoids,
-    bodies side by side) are told apart here without a descent."""
+    its corners. So an object's points stay within its vertices' extent along d over
+    both ends of the step, widened by its bound. The root boxes are tried first along
+    the centre line (they hold the vertices: a weaker bound, but O(1)); then, for
+    meshes with at most AXIS_TEST_VERTICES vertices together, the vertices (the box of
+    a ``boxed`` mesh, boxed_meshes, which is as tight): both objects' along the centre
+    line, and along one object's axes its box (exact at the step's start) against the
+    other's vertices. Unused vertices only weaken it. Shapes whose bounding spheres
+    meet while they do not touch (boxes, ellipsoids, bodies side by side or at an
+    angle) are told apart here without a descent."""
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
     ca0 = _world_centre(ps.centre, mesh_a, rp0, a)
     ca1 = _world_centre(ps.centre, mesh_a, rp1, a)
     cb0 = _world_centre(ps.centre, mesh_b, rp0, b)
     cb1 = _world_centre(ps.centre, mesh_b, rp1, b)
-    d0 = (cb0[0] + cb1[0]) - (ca0[0] + ca1[0])
-    d1 = (cb0[1] + cb1[1]) - (ca0[1] + ca1[1])
-    d2 = (cb0[2] + cb1[2]) - (ca0[2] + ca1[2])
-    length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-    if not length > 0.0:
-        return False
-    d = (d0 / length, d1 / length, d2 / length)
-    minus_d = (-d[0], -d[1], -d[2])
+    d = _unit((cb0[0] + cb1[0]) - (ca0[0] + ca1[0]), (cb0[1] + cb1[1]) - (ca0[1] + ca1[1]),
+              (cb0[2] + cb1[2]) - (ca0[2] + ca1[2]))
     gap = (_object_deviation(ps, motion[a], mesh_a, ca0) + _object_deviation(ps, motion[b], mesh_b, cb0)
            + margin[a] + margin[b] + dist_tol)
-    # first the meshes' root boxes (exact for box-shaped meshes), then their vertices
-    top_a = max(_box_highest_along(ps, mesh_a, rp0[a], d), _box_highest_along(ps, mesh_a, rp1[a], d))
-    bottom_b = -max(_box_highest_along(ps, mesh_b, rp0[b], minus_d), _box_highest_along(ps, mesh_b, rp1[b], minus_d))
-    if top_a + gap < bottom_b:
+    if _extents_apart(_box_extent_along(ps, mesh_a, rp0[a], rp1[a], d),
+                      _box_extent_along(ps, mesh_b, rp0[b], rp1[b], d), gap):
         return True
     if (ps.vert_start[mesh_a + 1] - ps.vert_start[mesh_a] + ps.vert_start[mesh_b + 1] - ps.vert_start[mesh_b]
             > AXIS_TEST_VERTICES):
         return False
-    top_a = max(_highest_along(ps, mesh_a, rp0[a], d), _highest_along(ps, mesh_a, rp1[a], d))
-    bottom_b = -max(_highest_along(ps, mesh_b, rp0[b], minus_d), _highest_along(ps, mesh_b, rp1[b], minus_d))
-    return top_a + gap < bottom_b
+    if _extents_apart(_extent_along(ps, boxed, mesh_a, rp0[a], rp1[a], d),
+                      _extent_along(ps, boxed, mesh_b, rp0[b], rp1[b], d), gap):
+        return True
+    for o, other in ((a, b), (b, a)):  # o's box is exact along its own axes at the step's start
+        for i in range(3):
+            axis = _unit(rp0[o, 0, i], rp0[o, 1, i], rp0[o, 2, i])
+            if _extents_apart(_box_extent_along(ps, ps.object_mesh[o], rp0[o], rp1[o], axis),
+                              _extent_along(ps, boxed, ps.object_mesh[other], rp0[other], rp1[other], axis), gap):
+                return True
+    return False
+
+
+@njit_borrowing
+def _unit(x, y, z):
+    """(x, y, z) scaled to length 1; zeros when it has no length (then nothing is apart)."""
+    length = math.sqrt(x * x + y * y + z * z)
+    if not length > 0.0:
+        return 0.0, 0.0, 0.0
+    return x / length, y / length, z / length
+
+
+@njit_borrowing
+def _extents_apart(extent_a, extent_b, gap):
+    """Intervals (lo, hi) more than gap apart, either one below the other."""
+    return extent_a[1] + gap < extent_b[0] or extent_b[1] + gap < extent_a[0]
 
 
 @njit_borrowing
@@ -286,30 +331,58 @@ def _body_direction(pose, d):
 
 
 @njit_borrowing
-def _box_highest_along(ps, mesh, pose, d):
-    """An upper bound of _highest_along from the mesh's root box: its centre's d . x plus
-    its half extents against |R^T d| (exact when the mesh reaches its box's corners)."""
-    e = _body_direction(pose, d)
-    node = ps.root[mesh]
-    top = pose[0, 3] * d[0] + pose[1, 3] * d[1] + pose[2, 3] * d[2]
-    for i in range(3):
-        lo = ps.node_lo[node, i]
-        hi = ps.node_hi[node, i]
-        top += 0.5 * (lo + hi) * e[i] + 0.5 * (hi - lo) * abs(e[i])
-    return top
+def _shift_along(pose, d):
+    """d . p for pose [R | p] (3, 4)."""
+    return pose[0, 3] * d[0] + pose[1, 3] * d[1] + pose[2, 3] * d[2]
 
 
 @njit_borrowing
-def _highest_along(ps, mesh, pose, d):
-    """Largest d . x (length units) over the vertices x of mesh placed by pose (3, 4);
-    d a unit 3-tuple. Computed as (R^T d) . v + d . p: within a few ulps of |v| + |p| of
-    the placed vertices' projection, far inside the objects' rounding margins."""
-    e0, e1, e2 = _body_direction(pose, d)
+def _extent_along(ps, boxed, mesh, pose0, pose1, d):
+    """(lowest, highest) d . x (length units) over the vertices x of mesh placed by pose0
+    and by pose1 ((3, 4) each); d a unit 3-tuple; from the root box when the mesh is
+    ``boxed``. Computed as (R^T d) . v + d . p: within a few ulps of |v| + |p| of the
+    placed vertices' projections, far inside the objects' rounding margins. One pass,
+    the four running extremes side by side (independent chains run faster)."""
+    if boxed[mesh]:
+        return _box_extent_along(ps, mesh, pose0, pose1, d)
+    e0, e1, e2 = _body_direction(pose0, d)
+    f0, f1, f2 = _body_direction(pose1, d)
     vertices = ps.vertices
-    best = -np.inf
+    lo0 = lo1 = np.inf
+    hi0 = hi1 = -np.inf
     for v in range(ps.vert_start[mesh], ps.vert_start[mesh + 1]):
-        best = max(best, e0 * vertices[v, 0] + e1 * vertices[v, 1] + e2 * vertices[v, 2])
-    return best + (pose[0, 3] * d[0] + pose[1, 3] * d[1] + pose[2, 3] * d[2])
+        x = vertices[v, 0]
+        y = vertices[v, 1]
+        z = vertices[v, 2]
+        s0 = e0 * x + e1 * y + e2 * z
+        s1 = f0 * x + f1 * y + f2 * z
+        lo0 = min(lo0, s0)
+        hi0 = max(hi0, s0)
+        lo1 = min(lo1, s1)
+        hi1 = max(hi1, s1)
+    shift0 = _shift_along(pose0, d)
+    shift1 = _shift_along(pose1, d)
+    return min(lo0 + shift0, lo1 + shift1), max(hi0 + shift0, hi1 + shift1)
+
+
+@njit_borrowing
+def _box_extent_along(ps, mesh, pose0, pose1, d):
+    """_extent_along's bounds from the mesh's root box (it holds the vertices): its
+    centre's d . x -+ its half extents against |R^T d|, at both poses (exact when the
+    mesh reaches its box's corners)."""
+    node = ps.root[mesh]
+    lo = np.inf
+    hi = -np.inf
+    for pose in (pose0, pose1):
+        e = _body_direction(pose, d)
+        centre = _shift_along(pose, d)
+        half = 0.0
+        for i in range(3):
+            centre += 0.5 * (ps.node_lo[node, i] + ps.node_hi[node, i]) * e[i]
+            half += 0.5 * (ps.node_hi[node, i] - ps.node_lo[node, i]) * abs(e[i])
+        lo = min(lo, centre - half)
+        hi = max(hi, centre + half)
+    return lo, hi
 
 
 @njit_borrowing
@@ -734,6 +807,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     time_row = np.empty(TIMES_WIDTH)
     rule = RULE_SWEPT_RIGID if interpolation == SCREW else RULE_SWEPT
     sweep_order = np.arange(n_objects)  # sweep_and_prune's, carried from step to step
+    boxed = boxed_meshes(ps)
     if find_frames and step_stop > step_start:  # frame step_start's test; the others come with their steps
         stack, leaves, frame_pairs = buffers.stack, buffers.leaves, buffers.frame_pairs
         hits, n_hits, _, _, stack, leaves, frame_pairs = frame_test(
@@ -785,7 +859,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 touch1 = False
             if touch0 and touch1:  # the whole step
                 t_first, t_last, tri_a, tri_b = 0.0, 1.0, tris0[row0, 0], tris0[row0, 1]
-            elif not (touch0 or touch1) and (not meet[c] or apart_along_centres(ps, rp0, rp1, motion, margin,
+            elif not (touch0 or touch1) and (not meet[c] or apart_along_axes(ps, boxed, rp0, rp1, motion, margin,
                                                                                  dist_tol, a, b)):
                 continue  # apart all along, so at the step's last frame too
             else:

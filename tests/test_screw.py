@@ -382,9 +382,9 @@ def _moved_poses(rng, centre, angle):
 
 
 @pytest.mark.parametrize("seed", range(2))
-def test_centre_line_test_never_parts_objects_that_touch(seed):
-    """swept.apart_along_centres (the cull before a pair's swept descent) against dense
-    sampling of the exact screw motion (scipy) with the exact triangle predicate: a box
+def test_axis_test_never_parts_objects_that_touch(seed):
+    """swept.apart_along_axes (the cull before a pair's swept descent) against dense
+    sampling of the exact screw motion (scipy) with python-fcl's collision test: a box
     and an ellipsoid, turning up to 45 degrees per step, placed so that their bounding
     spheres overlap. No pair it calls apart touches at any of 201 moments; it does call
     apart many pairs that come close (it culls), and leaves every touching pair alone."""
@@ -394,7 +394,7 @@ def test_centre_line_test_never_parts_objects_that_touch(seed):
     from collide.load import Mesh
     from collide.motion import INTERPOLATIONS, MOTION_WIDTH, step_motions
     from collide.packed import pack_scene
-    from collide.swept import apart_along_centres
+    from collide.swept import apart_along_axes, boxed_meshes
 
     fcl = pytest.importorskip("fcl")
     from fcl_poses import fcl_model
@@ -425,7 +425,7 @@ def test_centre_line_test_never_parts_objects_that_touch(seed):
         rows = np.empty((2, MOTION_WIDTH))
         object_margins(ps, poses[0], poses[1], margin)
         step_motions(INTERPOLATIONS["screw"], poses[0], poses[1], margin, rows)
-        said_apart = apart_along_centres(ps, poses[0], poses[1], rows, margin, 1e-9, 0, 1)
+        said_apart = apart_along_axes(ps, boxed_meshes(ps), poses[0], poses[1], rows, margin, 1e-9, 0, 1)
         twists = [np.real(scipy_linalg.logm(e[1] @ np.linalg.inv(e[0]))) for e in ends]
         touches = any(touch_at(ends, t) for t in samples)
         assert not (said_apart and touches)
@@ -434,10 +434,10 @@ def test_centre_line_test_never_parts_objects_that_touch(seed):
     assert apart >= 10 and touching >= 10, (apart, touching)  # both kinds occur: the check above is not empty
 
 
-def test_centre_line_test_allows_for_the_arc():
+def test_axis_test_allows_for_the_arc():
     """A rod turning 90 degrees about its centre, a small block on the diagonal within the
     rod's reach: the rod's corners at both frames lie below the block along the centre
-    line, but halfway through the turn the rod points at it. apart_along_centres must
+    line, but halfway through the turn the rod points at it. apart_along_axes must
     keep the pair (the arc's deviation bound), and does part it once the block is beyond
     the reach."""
     import trimesh
@@ -446,7 +446,7 @@ def test_centre_line_test_allows_for_the_arc():
     from collide.load import Mesh
     from collide.motion import INTERPOLATIONS, MOTION_WIDTH, step_motions
     from collide.packed import pack_scene
-    from collide.swept import apart_along_centres
+    from collide.swept import apart_along_axes, boxed_meshes
 
     meshes = [Mesh(name, None, np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
               for name, m in (("rod", trimesh.creation.box(extents=(2.0, 0.1, 0.1))),
@@ -461,7 +461,39 @@ def test_centre_line_test_allows_for_the_arc():
         rows = np.empty((2, MOTION_WIDTH))
         object_margins(ps, poses[0], poses[1], margin)
         step_motions(INTERPOLATIONS["screw"], poses[0], poses[1], margin, rows)
-        assert apart_along_centres(ps, poses[0], poses[1], rows, margin, 1e-9, 0, 1) == expected, distance
+        said_apart = apart_along_axes(ps, boxed_meshes(ps), poses[0], poses[1], rows, margin, 1e-9, 0, 1)
+        assert said_apart == expected, distance
+
+
+def test_boxed_meshes_are_those_whose_box_is_their_hull():
+    """swept.boxed_meshes flags a mesh when its root box's extent along any direction is
+    its vertices' (apart_along_axes then skips reading them): a subdivided box and an
+    offset box are flagged, and along 200 random directions their vertices' extremes
+    equal their box corners' (numpy); an ellipsoid and a box with one corner cut off
+    are not."""
+    import trimesh
+
+    from collide.load import Mesh
+    from collide.packed import pack_scene
+    from collide.swept import boxed_meshes
+
+    fine_box = trimesh.creation.box(extents=(1.0, 0.4, 0.3)).subdivide().subdivide()
+    offset_box = trimesh.creation.box(extents=(0.2, 0.3, 0.5))
+    offset_box.apply_translation((3.0, -1.0, 0.5))
+    ball = trimesh.creation.icosphere(subdivisions=1)
+    ball.apply_scale((0.5, 0.3, 0.2))
+    cut = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    cut = cut.slice_plane((0.4, 0.4, 0.4), (-1.0, -1.0, -1.0), cap=True)
+    meshes = [Mesh(str(k), None, np.asarray(m.vertices, float), np.asarray(m.faces, np.int64))
+              for k, m in enumerate((fine_box, offset_box, ball, cut))]
+    ps, _ = pack_scene(meshes, np.arange(4))
+    assert boxed_meshes(ps).tolist() == [True, True, False, False]
+    directions = np.random.default_rng(3).normal(size=(200, 3))
+    for mesh in meshes[:2]:
+        lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+        corners = np.array([[(hi if c >> i & 1 else lo)[i] for i in range(3)] for c in range(8)])
+        np.testing.assert_allclose((mesh.vertices @ directions.T).max(axis=0), (corners @ directions.T).max(axis=0),
+                                   rtol=0, atol=1e-12)
 
 
 # --- warnings and errors ------------------------------------------------------------------------

@@ -435,7 +435,18 @@ def box_deviation_of(m, box, rp0):
     c0 = rp0[3] + rp0[0] * b0 + rp0[1] * b1 + rp0[2] * b2
     c1 = rp0[7] + rp0[4] * b0 + rp0[5] * b1 + rp0[6] * b2
     c2 = rp0[11] + rp0[8] * b0 + rp0[9] * b1 + rp0[10] * b2
-    theta_rho = _theta_rho(m, c0, c1, c2) + m[M_THETA] * math.sqrt(half)
+    return ball_deviation(m, (c0, c1, c2), math.sqrt(half))
+
+
+@njit_borrowing
+def ball_deviation(m, centre, radius):
+    """Deviation bound (length units) of any point of the ball of the given radius around
+    the world point centre (3-tuple) at t = 0, plus the rounding margin m[M_ETA]: the
+    centre's theta rho grown by theta radius; 0 for linear motion. m: a motion row or
+    motion_tuple."""
+    if m[M_THETA] == 0.0:
+        return 0.0
+    theta_rho = _theta_rho(m, centre[0], centre[1], centre[2]) + m[M_THETA] * radius
     return _bound(m, theta_rho) + m[M_ETA]
 
 

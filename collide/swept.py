@@ -14,8 +14,8 @@ kernel for a chunk of steps. Per step:
    deviation bounds) around the chords can only meet when
    (v·v)t² + 2(v·s)t + (s·s − r²) <= 0; a pair whose window misses [0, 1] is
    skipped; so is one touching at neither frame that stays apart along the line
-   through its centres (apart_along_axes: root boxes, then vertices, at both
-   frames, widened by the deviation bounds);
+   through its centres or along either object's axes (apart_along_axes: root
+   boxes, then vertices, at both frames, widened by the deviation bounds);
 3. BVH leaves: tandem descent with boxes bounding the motion (broad.RULE_SWEPT_RIGID
    under screw motion, RULE_SWEPT under linear-vertex motion);
 4. triangles: certified CCD (narrow.candidates_contact_window) gives the object
@@ -99,6 +99,7 @@ from .motion import (
     M_THETA,
     MOTION_WIDTH,
     SCREW,
+    ball_deviation,
     pose_at,
     screw_motion,
     sphere_deviation,
@@ -287,7 +288,8 @@ def apart_along_axes(ps, boxed, rp0, rp1, motion, margin, dist_tol, a, b):
     cb1 = _world_centre(ps.centre, mesh_b, rp1, b)
     d = _unit((cb0[0] + cb1[0]) - (ca0[0] + ca1[0]), (cb0[1] + cb1[1]) - (ca0[1] + ca1[1]),
               (cb0[2] + cb1[2]) - (ca0[2] + ca1[2]))
-    gap = (_object_deviation(ps, motion[a], mesh_a, ca0) + _object_deviation(ps, motion[b], mesh_b, cb0)
+    gap = (ball_deviation(motion[a], ca0, ps.sphere_radius[mesh_a]) + ball_deviation(motion[b], cb0,
+                                                                                    ps.sphere_radius[mesh_b])
            + margin[a] + margin[b] + dist_tol)
     if _extents_apart(_box_extent_along(ps, mesh_a, rp0[a], rp1[a], d),
                       _box_extent_along(ps, mesh_b, rp0[b], rp1[b], d), gap):
@@ -295,8 +297,9 @@ def apart_along_axes(ps, boxed, rp0, rp1, motion, margin, dist_tol, a, b):
     if (ps.vert_start[mesh_a + 1] - ps.vert_start[mesh_a] + ps.vert_start[mesh_b + 1] - ps.vert_start[mesh_b]
             > AXIS_TEST_VERTICES):
         return False
-    if _extents_apart(_extent_along(ps, boxed, mesh_a, rp0[a], rp1[a], d),
-                      _extent_along(ps, boxed, mesh_b, rp0[b], rp1[b], d), gap):
+    if not (boxed[mesh_a] and boxed[mesh_b]) and _extents_apart(  # (both boxed: just tested)
+            _extent_along(ps, boxed, mesh_a, rp0[a], rp1[a], d), _extent_along(ps, boxed, mesh_b, rp0[b], rp1[b], d),
+            gap):
         return True
     for o, other in ((a, b), (b, a)):  # o's box is exact along its own axes at the step's start
         for i in range(3):
@@ -383,18 +386,6 @@ def _box_extent_along(ps, mesh, pose0, pose1, d):
         lo = min(lo, centre - half)
         hi = max(hi, centre + half)
     return lo, hi
-
-
-@njit_borrowing
-def _object_deviation(ps, m, mesh, centre):
-    """Deviation bound (length units, rounding margin m[M_ETA] included) of every point of
-    the mesh's bounding sphere, whose world centre at t = 0 is centre (3-tuple), under
-    motion row m: the centre's bound with rho grown by the sphere's radius; 0 for
-    linear-vertex motion."""
-    if m[M_THETA] == 0.0:
-        return 0.0
-    return sphere_deviation(m, centre) + 0.125 * m[M_THETA] * m[M_THETA] * ps.sphere_radius[mesh] * (
-        1.0 + 2.0 ** -40) + m[M_ETA]
 
 
 class Buffers(NamedTuple):

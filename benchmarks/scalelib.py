@@ -452,7 +452,7 @@ def _swept_levels_kernel():
                 cand, n, _ = swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]],
                                             world0, world1, ps.world_start[a], ps.world_start[b], motion[a],
-                                            motion[b], dist_tol, cand, counts)
+                                            motion[b], dist_tol, -np.inf, np.inf, cand, counts)
         return kept, counts
 
     _LEVELS = levels
@@ -490,14 +490,14 @@ def kernel_breakdown(meshes, trajectory, repeat=3, interpolation="screw"):
     # every pair searched in full (scan() passes the frame contacts, which spare some searches)
     no_hits = (np.zeros(0, np.int64), np.zeros((0, 2), np.int64))
     scan_intervals(ps, poses[:2], scene.static, pairs, *no_hits, 0, 1, False, code, config.TIME_TOL, dist_tol,
-                   config.ONE_SIDED_LEAVES)
+                   config.ONE_SIDED_LEAVES, config.PROBED_FACES)
     jobs = {"discrete frame kernel": lambda: scan_frames(ps, poses, scene.static, pairs, 0, n, False, True),
             "swept: object pairs": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 1),
             "swept: + BVH descent": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 2),
             "swept: + triangle boxes": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 3),
             "swept: full kernel": lambda: scan_intervals(ps, poses, scene.static, pairs, *no_hits, 0, n - 1, False,
                                                          code, config.TIME_TOL, dist_tol,
-                                                         config.ONE_SIDED_LEAVES)}
+                                                         config.ONE_SIDED_LEAVES, config.PROBED_FACES)}
     times = {k: [] for k in jobs}
     for _ in range(repeat):
         for name, job in jobs.items():

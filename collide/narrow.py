@@ -171,12 +171,13 @@ def triangle_pair_count(leaves, n_leaves, count):
 
 @njit(cache=True)
 def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_a, face_base_b,
-                     world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, out, counts):
+                     world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol, after, before, out,
+                     counts):
     """Triangle pairs (tri_a, tri_b) of the leaf pairs whose moving boxes, widened by
     dist_tol, both triangles' deviation bounds and rounding margins, overlap at some
-    moment of the step (windows.swept_window_of, its per-triangle parts computed once per
-    triangle and leaf pair). Returns (out int64 (cap, 2), n, windows float64
-    (n, 2)): rows sorted by (tri_a, tri_b), windows their (t_lo, t_hi)."""
+    moment of the step in [after, before] (windows.swept_window_of, its per-triangle parts
+    computed once per triangle and leaf pair). Returns (out int64 (cap, 2), n, windows
+    float64 (n, 2)): rows sorted by (tri_a, tri_b), windows their (t_lo, t_hi)."""
     n = np.int64(0)
     room = triangle_pair_count(leaves, n_leaves, count)
     windows = np.empty((max(room, 1), 2))
@@ -205,11 +206,11 @@ def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_
                 margin = dist_tol + (dev_p + side_b[j, _SIDE_DEV]) + eta
                 q_box = _side_box(side_b, j)
                 t_lo, t_hi = box_window(p_box, q_box, margin)
-                if t_lo > t_hi:
+                if t_lo > t_hi or t_hi < after or t_lo > before:
                     continue
                 t_lo, t_hi = cross_window(p0, p1, _side_corners(side_b, j, 0), _side_corners(side_b, j, 9), margin,
                                           largest_coordinate(p_box, q_box), t_lo, t_hi)
-                if t_lo <= t_hi:
+                if t_lo <= t_hi and t_hi >= after and t_lo <= before:
                     out[n, 0] = tri_a
                     out[n, 1] = prim_ids[first[lb] + j]
                     windows[n, 0] = t_lo

@@ -49,6 +49,14 @@ in the same order (_one_sided_window: the same contacts, bit for bit). A pair
 apart at the step's start then gets its frame test on the leaf pairs first, to
 know whether a contact begins.
 
+Between big meshes (config.PROBED_FACES) under screw motion, such a search first
+probes: frame tests at moments inside the step, halving the part of the step
+where the contact's end (beginning) can lie, each stopping at the first touching
+triangle pair, find a moment the objects touch; the swept descent then covers
+only the step after it (before it), where few leaf pairs come near
+(_probed_window; contact times move by at most the time tolerance). A pair of
+such meshes apart at the step's start gets its frame test first.
+
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
 sub-steps (motion.substeps), each a small screw motion of its own with tight
@@ -80,6 +88,7 @@ from .broad import (
 )
 from .ccd import ccd_work
 from .discrete import (
+    NO_LIMIT,
     _frame_keys,
     _pair_triangles,
     _placed,
@@ -87,6 +96,7 @@ from .discrete import (
     append_hit,
     frame_test,
     key_row,
+    object_margin,
     object_margins,
     object_world_boxes,
     pair_leaves,
@@ -425,11 +435,13 @@ def _sub_step_buffers(n_objects, n_world):
 # calls below pass np.int64(...) / np.bool_(...), which are not literals.
 
 @njit(cache=True, inline="always")
-def _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs, counts):
-    """narrow.swept_candidates of objects a and b: (tri_pairs, n, windows)."""
+def _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs, counts, after, before):
+    """narrow.swept_candidates of objects a and b (windows meeting [after, before]):
+    (tri_pairs, n, windows)."""
     return swept_candidates(leaves, n_leaves, ps.node_first, ps.node_count, ps.prim_ids, ps.faces,
                             ps.face_start[ps.object_mesh[a]], ps.face_start[ps.object_mesh[b]], world0, world1,
-                            ps.world_start[a], ps.world_start[b], motion[a], motion[b], dist_tol, tri_pairs, counts)
+                            ps.world_start[a], ps.world_start[b], motion[a], motion[b], dist_tol, after, before,
+                            tri_pairs, counts)
 
 
 @njit(cache=True, inline="always")
@@ -450,7 +462,7 @@ def _window(ps, motion, world0, world1, a, b, n_leaves, leaves, time_tol, dist_t
     vertices world0, world1 at both ends and their n_leaves overlapping leaf pairs:
     _candidates, then _search. Returns (tri_pairs, t_first, t_last, tri_a, tri_b)."""
     tri_pairs, n, windows = _candidates(ps, motion, world0, world1, a, b, n_leaves, leaves, dist_tol, tri_pairs,
-                                        counts)
+                                        counts, -np.inf, np.inf)
     t_first, t_last, tri_a, tri_b = _search(ps, motion, world0, world1, a, b, tri_pairs, n, windows, time_tol,
                                             dist_tol, find_first, find_last, counts)
     return tri_pairs, t_first, t_last, tri_a, tri_b
@@ -545,14 +557,17 @@ def _frame_tests(n_objects, n_world):
 
 
 @njit(cache=True)
-def _descent_hit(ps, rp, f, a, b, static, frame, near_a, near_b, scratch, buffers, counts):
+def _descent_hit(ps, rp, f, a, b, static, frame, near_a, near_b, scratch, buffers, counts, max_leaf_pairs):
     """A triangle pair (tri_a, tri_b) of objects a and b intersecting at frame f (poses rp
     (N, 3, 4)), or (-1, -1): the frame test's tandem descent, stopped at the first one,
-    looking near triangle pair (near_a, near_b) first. Returns (buffers, tri_a, tri_b)."""
+    looking near triangle pair (near_a, near_b) first; (-1, -1) also when none is found in
+    the first max_leaf_pairs leaf pairs (discrete.NO_LIMIT: never). Returns (buffers,
+    tri_a, tri_b)."""
     first_only = np.bool_(True)  # not a literal: the overload scan_frames compiles (see above _candidates)
     stack, leaves, tri, n_tri = _pair_triangles(ps, rp, frame.still, f, a, b, frame.margin[a] + frame.margin[b],
                                                 static, frame.stamp, frame.world, first_only, near_a, near_b, scratch,
-                                                buffers.stack, buffers.leaves, buffers.frame_pairs, counts)
+                                                buffers.stack, buffers.leaves, buffers.frame_pairs, counts,
+                                                max_leaf_pairs)
     buffers = Buffers(stack, leaves, buffers.tri_pairs, tri)
     if n_tri == 0:
         return buffers, -1, -1
@@ -592,7 +607,7 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers
 
 @njit(cache=True, inline="always")
 def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, touch0, touch1,
-                 find_touch1, one_sided_leaves, state, buffers, counts):
+                 find_touch1, one_sided_leaves, probed_faces, state, buffers, counts):
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
     (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
@@ -602,18 +617,34 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     swept spheres meet (spheres_meet). state: Step. Returns (buffers, t_first, t_last,
     tri_a, tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
-    always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window)."""
+    always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window). probed_faces:
+    config.PROBED_FACES (probes_pair: then a search for one end, under screw motion
+    without sub-steps, starts with probes, _probed_window; a pair apart at the step's start
+    gets its frame test at k + 1 first)."""
     pair_margin = margin[a] + margin[b] + dist_tol
     hit_a = hit_b = -1
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
     n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre, mesh_a, rp0, a), ps.sphere_radius[mesh_a],
                      _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
+    if n_sub == 1 and rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces):
+        if find_touch1:  # (not touch0) whether a contact begins: a frame test of its own
+            none = np.int64(-1)  # not a literal (see above _candidates)
+            buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
+                                                 buffers, counts, np.int64(NO_LIMIT))
+            touch1 = hit_a >= 0
+            find_touch1 = False
+        if touch0 != touch1:
+            buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, np.bool_(touch0),
+                                                      pair_margin, time_tol, dist_tol, state, buffers, counts)
+            if touch0:
+                return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
+            return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
     if n_sub > 1:
         if find_touch1:
             none = np.int64(-1)  # not a literal (see above _candidates)
             buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
-                                                 buffers, counts)
+                                                 buffers, counts, np.int64(NO_LIMIT))
         buffers, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
             ps, rp0, rp1, motion, margin, a, b, n_sub, pair_margin, time_tol, dist_tol, state.sub, state.pair,
             buffers, counts)
@@ -629,9 +660,10 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
                                               n_leaves, buffers, counts)
             touch1 = hit_a >= 0
         if touch0 != touch1:
+            none = np.int64(-1)  # not a literal (see above _candidates)
             buffers, t, tri_a, tri_b = _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves,
-                                                         np.bool_(touch0), time_tol, dist_tol, state, buffers,
-                                                         counts)
+                                                         np.bool_(touch0), -np.inf if touch0 else np.inf, none,
+                                                         none, time_tol, dist_tol, state, buffers, counts)
             if touch0:
                 return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
@@ -640,7 +672,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     place_pair_leaves(ps, rp0, rp1, k, a, b, static, leaves, n_leaves, state.stamp0, state.world0, state.stamp1,
                       state.world1)
     tri_pairs, n_candidates, windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_leaves, leaves,
-                                                   dist_tol, buffers.tri_pairs, counts)
+                                                   dist_tol, buffers.tri_pairs, counts, -np.inf, np.inf)
     buffers = Buffers(stack, leaves, tri_pairs, buffers.frame_pairs)
     # two triangles touching at the step's end would be candidates (their windows hold t = 1): with
     # none, the frame test at k + 1 has nothing to find
@@ -660,9 +692,95 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
 
 
+#: Probes (frame tests at moments inside the step) that _probed_window spends on finding
+#: a moment near a one-sided contact's unknown end: the end is then known to within
+#: 2^-CONTACT_PROBES of the step.
+CONTACT_PROBES = 5
+#: A probe gives up (as if the objects did not touch then: the answer stays right, only
+#: the descent after the probes covers more) after this many leaf pairs without a
+#: touching triangle pair. It looks near the last touching pair found first, so a
+#: contact there is usually found in the first few; proving that nothing touches would
+#: take a descent of all leaf pairs near the patch.
+PROBE_LEAF_PAIRS = 64
+
+
+@njit_borrowing
+def probes_pair(ps, a, b, probed_faces):
+    """Whether a search for one end of a contact of objects a and b starts with probes
+    (_probed_window): both of their meshes have at least probed_faces triangles."""
+    mesh_a = ps.object_mesh[a]
+    mesh_b = ps.object_mesh[b]
+    return min(ps.face_start[mesh_a + 1] - ps.face_start[mesh_a],
+               ps.face_start[mesh_b + 1] - ps.face_start[mesh_b]) >= probed_faces
+
+
+@njit_borrowing
+def _probe_key(k, t):
+    """Stamp key (never a frame, -1 or -2) of the world vertices of step k at fraction t,
+    a multiple of 2^-CONTACT_PROBES strictly inside the step."""
+    scale = 1 << CONTACT_PROBES
+    return -3 - (k * scale + np.int64(t * scale))
+
+
+@njit(cache=True, inline="always")
+def _poses_at(ps, rp0, rp1, motion, static, o, t, out):
+    """Object o's pose at fraction t of the step into out (N, 3, 4) (motion.pose_at;
+    a static object's pose unchanged, bit for bit)."""
+    pose_at(motion[o], rp0[o], rp1[o], 0.0 if static[o] else t, out[o])
+
+
+@njit(cache=True, inline="always")
+def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pair_margin, time_tol, dist_tol,
+                   state, buffers, counts):
+    """_one_sided_window of objects a and b under screw motion (touching at the step's
+    start, backwards, or only at its end), from a descent over only the part of the step
+    where the answer can lie. CONTACT_PROBES frame tests at moments in between
+    (bisection: each probes the moment halfway between the latest (earliest) one found
+    touching and the first (last) one not found touching; a probe gives up after
+    PROBE_LEAF_PAIRS leaf pairs) give a moment `known` at which they touch; the contact
+    ends (begins) no earlier (later) than that, so the swept descent needs only cover
+    [known, 1] ([0, known]): a screw motion of its own between the poses there (as a
+    sub-step). Each probe looks first near the triangle pair the last one found (the first
+    probe, in the descent's own order: what a probe finds depends on the scene only, not on
+    which pair the frame tests found, so neither chunks of steps nor --triangle-pairs
+    change the answer). Returns _one_sided_window's (buffers, t, tri_a, tri_b)."""
+    sub = state.sub
+    probe = state.probe
+    near_a = near_b = np.int64(-1)
+    known = 0.0 if backwards else 1.0  # the objects touch then
+    other = 1.0 - known                 # and do not then
+    for _ in range(CONTACT_PROBES):
+        mid = 0.5 * (known + other)
+        for o in (a, b):
+            _poses_at(ps, rp0, rp1, motion, static, o, mid, sub.pose0)
+            probe.margin[o] = object_margin(ps, sub.pose0, sub.pose0, o)
+        buffers, hit_a, hit_b = _descent_hit(ps, sub.pose0, _probe_key(k, mid), a, b, static, probe, near_a, near_b,
+                                             state.pair, buffers, counts, np.int64(PROBE_LEAF_PAIRS))
+        if hit_a >= 0:
+            known = mid
+            near_a = hit_a
+            near_b = hit_b
+        else:
+            other = mid
+    t0 = known if backwards else 0.0
+    t1 = 1.0 if backwards else known
+    for o in (a, b):
+        _poses_at(ps, rp0, rp1, motion, static, o, t0, sub.pose0)
+        _poses_at(ps, rp0, rp1, motion, static, o, t1, sub.pose1)
+        screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # part of a turn below half
+    rule = np.int64(RULE_SWEPT_RIGID)  # not a literal (see above _candidates)
+    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, rule, pair_margin, state.pair,
+                                          buffers.stack, buffers.leaves, counts)
+    buffers = Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs)
+    if known == (0.0 if backwards else 1.0):  # no probe found a contact: the plain one-sided search
+        known = -np.inf if backwards else np.inf
+    return _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, known, near_a, near_b,
+                             time_tol, dist_tol, state, buffers, counts)
+
+
 @njit(cache=True)
-def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, time_tol, dist_tol, state,
-                      buffers, counts):
+def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, known, known_a, known_b,
+                      time_tol, dist_tol, state, buffers, counts):
     """The first contact of objects a and b during step k (backwards: the last), for a pair
     touching at the step's end (start), from the leaf pairs buffers.leaves[:n_leaves] of
     their swept descent: the answer of _search (narrow.candidates_contact_window with
@@ -672,9 +790,12 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     cannot move the contact found. Here the leaf pairs are opened in that order of their
     own windows (broad.leaf_pair_windows, which hold their triangle pairs'), and a
     triangle pair is tried once no unopened leaf pair can hold one that comes before it:
-    the same pairs are tried in the same order with the same limits. Returns (buffers,
-    t, tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none touches; tri_a,
-    tri_b forwards only."""
+    the same pairs are tried in the same order with the same limits. known: a moment the
+    objects are known to touch (_probed_window; triangle pair (known_a, known_b)), or inf
+    (backwards -inf) if none: the search starts from it, as if a triangle pair had been
+    found touching then (only contacts before it, backwards after it, are searched for).
+    Returns (buffers, t, tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none
+    touches; tri_a, tri_b forwards only."""
     leaves = buffers.leaves
     windows = leaf_pair_windows(ps.node_lo, ps.node_hi, rp0[a], rp1[a], rp0[b], rp1[b], motion[a], motion[b],
                                 dist_tol, leaves, n_leaves)
@@ -692,7 +813,8 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     work = ccd_work()
     face_a = ps.face_start[ps.object_mesh[a]]
     face_b = ps.face_start[ps.object_mesh[b]]
-    t = -np.inf if backwards else np.inf
+    # forwards, a pair found touching at `known` itself replaces (known_a, known_b) (comes_first)
+    t = known if backwards else np.nextafter(known, np.inf)
     best_a = best_b = -1
     tri_pairs = buffers.tri_pairs
     while True:
@@ -719,11 +841,16 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
         n_one = np.int64(1)  # not a literal (see above _candidates)
         place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, n_one, state.stamp0, state.world0, state.stamp1,
                           state.world1)
+        # only the triangle pairs the search can still reach: backwards, windows ending at t or
+        # later; forwards, starting at t or earlier (t only moves on, toward the step's start)
         tri_pairs, n, tri_windows = _candidates(ps, motion, state.world0, state.world1, a, b, n_one, one, dist_tol,
-                                                tri_pairs, counts)
+                                                tri_pairs, counts, t if backwards else -np.inf,
+                                                np.inf if backwards else t)
         for r in range(n):
             pending = pending_push(pending, -tri_windows[r, 1] if backwards else tri_windows[r, 0], tri_pairs[r, 0],
                                    tri_pairs[r, 1])
+    if not backwards and best_a < 0 and known < np.inf:
+        t, best_a, best_b = known, known_a, known_b  # no certified search came earlier
     return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
 
@@ -751,11 +878,12 @@ class Step(NamedTuple):
     sub: SubStep
     pair: object        #: discrete.PairScratch
     frame: FrameTests
+    probe: FrameTests   #: frame tests inside a step (_probed_window)
 
 
 @njit_entry
 def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, find_frames,
-                   interpolation, time_tol, dist_tol, one_sided_leaves):
+                   interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
@@ -770,7 +898,9 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     pairs, without a descent of its own); interpolation: a motion.INTERPOLATIONS code;
     time_tol in units of the step; dist_tol in length units; one_sided_leaves:
     config.ONE_SIDED_LEAVES (how large a search of one end of a contact reads its leaf
-    pairs in time order; only affects speed). Returns (hits int64 (H,
+    pairs in time order; only affects speed); probed_faces: config.PROBED_FACES (how
+    large both meshes of a pair whose search of one end starts with probes; moves
+    contact times by at most time_tol). Returns (hits int64 (H,
     HIT_WIDTH), the frame tests' hits (none without find_frames; the first pair
     found, but the smallest at frame 0 when step_start is 0: a contact that begins
     there reports it without a search of its own, HIT_SMALLEST),
@@ -782,7 +912,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), new_stamps(n_world), new_stamps(n_world),
                  _sub_step_buffers(n_objects, n_world),
                  pair_scratch(),
-                 _frame_tests(n_objects, n_world if find_frames else 0))
+                 _frame_tests(n_objects, n_world if find_frames else 0), _frame_tests(n_objects, n_world))
     buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64),
                       np.empty((64, 2), np.int64))
     counts = np.zeros(COUNT_WIDTH, np.int64)
@@ -844,7 +974,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                     hit_a, hit_b = near_a, near_b
                 else:
                     buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, near_a, near_b,
-                                                         state.pair, buffers, counts)
+                                                         state.pair, buffers, counts, np.int64(NO_LIMIT))
                 touch1 = hit_a >= 0
             else:
                 touch1 = False
@@ -856,8 +986,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
                     ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, np.bool_(touch0),
-                    np.bool_(touch1), np.bool_(find_frames and not touch0), one_sided_leaves, state, buffers,
-                    counts)
+                    np.bool_(touch1), np.bool_(find_frames and not touch0), one_sided_leaves, probed_faces, state,
+                    buffers, counts)
                 if not touch0:
                     hit_a, hit_b = found_a, found_b
                 elif t_first < np.inf:
@@ -880,5 +1010,6 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         keys0, tris0 = keys1, tris1
         # frame k + 1 ends this step and starts the next: its world vertices move over
         # (swapping the buffers and their stamps), so no frame is transformed twice
-        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame)
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame,
+                     state.probe)
     return hits[:n_hits].copy(), ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -247,7 +247,7 @@ def test_step_scan_names_the_smallest_pair_at_its_first_frame(seed, monkeypatch)
     no_keys, no_tris = np.zeros(0, np.int64), np.zeros((0, 2), np.int64)
     for start in (0, 1):
         hits = scan_intervals(ps, poses, static, pairs, no_keys, no_tris, start, 2, True, INTERPOLATIONS["screw"],
-                              config.TIME_TOL, 1e-9, config.ONE_SIDED_LEAVES)[0]
+                              config.TIME_TOL, 1e-9, config.ONE_SIDED_LEAVES, config.PROBED_FACES)[0]
         assert (hits[:, HIT_FRAME] == start).any()
         for f, a, b, tri_a, tri_b, smallest in hits[:, [HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_SMALLEST]]:
             at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]
@@ -416,7 +416,7 @@ def test_first_hit_descent_looks_near_the_last_frames_pair_first():
     it finds an intersecting pair exactly when the exhaustive search finds any, one of
     those, and, looking near the last one first, tests fewer node pairs than a descent
     from the roots in its fixed order (a sphere sliding and turning through another)."""
-    from collide.discrete import _pair_triangles, pair_scratch
+    from collide.discrete import NO_LIMIT, _pair_triangles, pair_scratch
     from collide.motion import MOTION_WIDTH
     from collide.narrow import new_stamps
     from collide.rows import COUNT_NODE_PAIRS, COUNT_WIDTH
@@ -429,7 +429,7 @@ def test_first_hit_descent_looks_near_the_last_frames_pair_first():
     def search(f, first_only, near):
         counts = np.zeros(COUNT_WIDTH, np.int64)
         *_, tri, n = _pair_triangles(ps, poses[f], still, f, 0, 1, 1e-9, static, stamp, world, first_only, near[0],
-                                     near[1], scratch, stack, leaves, np.empty((4, 2), np.int64), counts)
+                                     near[1], scratch, stack, leaves, np.empty((4, 2), np.int64), counts, NO_LIMIT)
         return set(map(tuple, tri[:n].tolist())), counts[COUNT_NODE_PAIRS]
 
     work = {"near": 0, "roots": 0}
@@ -445,3 +445,39 @@ def test_first_hit_descent_looks_near_the_last_frames_pair_first():
         previous = search(f, True, previous or (-1, -1))[0].pop() if every else None
     assert compared >= 20
     assert work["near"] < 0.8 * work["roots"], work
+
+
+def test_first_hit_descent_gives_up_after_its_budget_of_leaf_pairs():
+    """discrete._pair_triangles with max_leaf_pairs (a probe of swept._probed_window):
+    it reports an intersecting pair only if the exhaustive search has it, and none
+    after testing max_leaf_pairs leaf pairs (plus the rest of the batch that reached
+    it) without finding one; with no limit it finds one whenever any exists."""
+    from collide.discrete import NO_LIMIT, _pair_triangles, pair_scratch
+    from collide.motion import MOTION_WIDTH
+    from collide.narrow import new_stamps
+    from collide.rows import COUNT_LEAF_PAIRS, COUNT_WIDTH
+    ps = _two_spheres()
+    poses = _sliding_poses(30, 0.05)
+    still, static = np.zeros((2, MOTION_WIDTH)), np.zeros(2, bool)
+    world, stamp = np.empty((ps.world_start[2], 3)), new_stamps(ps.world_start[2])
+    scratch, stack, leaves = pair_scratch(), np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
+
+    def search(f, first_only, budget):
+        counts = np.zeros(COUNT_WIDTH, np.int64)
+        *_, tri, n = _pair_triangles(ps, poses[f], still, f, 0, 1, 1e-9, static, stamp, world, first_only, -1, -1,
+                                     scratch, stack, leaves, np.empty((4, 2), np.int64), counts, budget)
+        return set(map(tuple, tri[:n].tolist())), counts[COUNT_LEAF_PAIRS]
+
+    gave_up = 0
+    for f in range(poses.shape[0]):
+        every, _ = search(f, False, NO_LIMIT)
+        assert every
+        found, _ = search(f, True, NO_LIMIT)
+        assert len(found) == 1 and found <= every
+        for budget in (1, 4, 16):
+            found, tested = search(f, True, budget)
+            assert found <= every and len(found) <= 1
+            if not found:
+                gave_up += 1
+                assert tested < budget + 8  # FIRST_HIT_BATCH leaf pairs at a time
+    assert gave_up > 0  # some searches did give up

@@ -490,14 +490,15 @@ def kernel_breakdown(meshes, trajectory, repeat=3, interpolation="screw"):
     # every pair searched in full (scan() passes the frame contacts, which spare some searches)
     no_hits = (np.zeros(0, np.int64), np.zeros((0, 2), np.int64))
     scan_intervals(ps, poses[:2], scene.static, pairs, *no_hits, 0, 1, False, code, config.TIME_TOL, dist_tol,
-                   config.ONE_SIDED_LEAVES, config.PROBED_FACES)
+                   config.ONE_SIDED_LEAVES, config.PROBED_FACES, config.PROBE_LEAF_PAIRS)
     jobs = {"discrete frame kernel": lambda: scan_frames(ps, poses, scene.static, pairs, 0, n, False, True),
             "swept: object pairs": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 1),
             "swept: + BVH descent": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 2),
             "swept: + triangle boxes": lambda: levels(ps, poses, scene.static, pairs, code, dist_tol, 3),
             "swept: full kernel": lambda: scan_intervals(ps, poses, scene.static, pairs, *no_hits, 0, n - 1, False,
                                                          code, config.TIME_TOL, dist_tol,
-                                                         config.ONE_SIDED_LEAVES, config.PROBED_FACES)}
+                                                         config.ONE_SIDED_LEAVES, config.PROBED_FACES,
+                                                         config.PROBE_LEAF_PAIRS)}
     times = {k: [] for k in jobs}
     for _ in range(repeat):
         for name, job in jobs.items():

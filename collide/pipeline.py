@@ -445,7 +445,7 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
     static_hits, _, counts = _static_hits(ps, poses, static, filters, False)
     results = _run_chunks(_scan_steps, (ps, poses, static, filters.kernel_filter(extra_ignore=static)),
                           (n_frames, INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES,
-                           config.PROBED_FACES),
+                           config.PROBED_FACES, config.PROBE_LEAF_PAIRS),
                           poses.shape[0] - 1, workers, progress, scheduler)
     hits = [r[0] for r in results]
     if static_hits is not None:
@@ -456,13 +456,14 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
 
 
 def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, time_tol, dist_tol, one_sided_leaves,
-                probed_faces):
+                probed_faces, probe_leaf_pairs):
     """The chunk of _run_steps for steps [start, stop): scan_intervals running the frame
     tests itself, frame start's first. Returns (hits of frames (start if start == 0,
     else start + 1: the chunk before reports frame start) to min(stop, n_frames - 1),
     ids, fractions, counts)."""
     hits, ids, fractions, counts = scan_intervals(ps, poses, static, pairs, _NO_KEYS, _NO_TRIS, start, stop, True,
-                                                  interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces)
+                                                  interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces,
+                                                  probe_leaf_pairs)
     frame = hits[:, HIT_FRAME]
     return hits[(frame < n_frames) & ((frame > start) | (start == 0))], ids, fractions, counts
 
@@ -528,7 +529,7 @@ def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_t
     results = _run_chunks(scan_intervals, (ps, poses, static, filters.kernel_filter(extra_ignore=static), touching,
                                            touching_tris),
                           (False, INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES,
-                           config.PROBED_FACES),
+                           config.PROBED_FACES, config.PROBE_LEAF_PAIRS),
                           n_steps, workers, progress, scheduler)
     return (np.concatenate([r[1] for r in results]).reshape(-1, SWEPT_WIDTH),
             np.concatenate([r[2] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[3] for r in results]))
@@ -821,7 +822,8 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
     scan_frames(ps, poses, static, pair_filter, 0, 0, False, True)
     if continuous:
         scan_intervals(ps, poses, static, pair_filter, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True,
-                       INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES, config.PROBED_FACES)
+                       INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES, config.PROBED_FACES,
+                       config.PROBE_LEAF_PAIRS)
     smallest_touching_pairs(ps, poses, static, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0)
     compile_contact_points(ps, poses)
 

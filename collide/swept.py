@@ -607,42 +607,48 @@ def _leaf_hit(ps, rp, f, a, b, static, frame, scratch, leaves, n_leaves, buffers
 
 @njit(cache=True, inline="always")
 def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, touch0, touch1,
-                 find_touch1, one_sided_leaves, probed_faces, state, buffers, counts):
+                 find_touch1, one_sided_leaves, probed_faces, probe_leaf_pairs, state, buffers, counts):
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
     (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
     t_last = 1: only the other end is searched). find_touch1: touch1 is not known
-    yet; find it (state.frame), with a triangle pair (hit_a, hit_b) touching at frame
-    k + 1, (-1, -1) if none. A pair touching at neither frame comes here only if its
+    yet (with touch0 only for a pair that _probed: its frame test gave up); find it
+    (state.frame), with a triangle pair (hit_a, hit_b) touching at frame k + 1, (-1,
+    -1) if none. A pair touching at neither frame comes here only if its
     swept spheres meet (spheres_meet). state: Step. Returns (buffers, t_first, t_last,
     tri_a, tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
     always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window). probed_faces:
-    config.PROBED_FACES (probes_pair: then a search for one end, under screw motion
-    without sub-steps, starts with probes, _probed_window; a pair apart at the step's start
-    gets its frame test at k + 1 first)."""
+    config.PROBED_FACES (_probed: then a search for one end starts with probes,
+    _probed_window; a pair apart at the step's start gets a frame test at k + 1 of its
+    own first, on a budget; one touching there whose frame test at k + 1 gave up is
+    searched for the contact's end, and tested at k + 1 in full only if the contact
+    lasts to the step's end)."""
     pair_margin = margin[a] + margin[b] + dist_tol
     hit_a = hit_b = -1
-    mesh_a = ps.object_mesh[a]
-    mesh_b = ps.object_mesh[b]
-    n_sub = substeps(motion[a], motion[b], _world_centre(ps.centre, mesh_a, rp0, a), ps.sphere_radius[mesh_a],
-                     _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
-    if n_sub == 1 and rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces):
-        if find_touch1:  # (not touch0) whether a contact begins: a frame test of its own
-            none = np.int64(-1)  # not a literal (see above _candidates)
+    n_sub = _pair_substeps(ps, rp0, motion, a, b)
+    none = np.int64(-1)  # not a literal (see above _candidates)
+    if n_sub == 1 and rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces):  # _probed
+        if find_touch1 and not touch0:  # whether a contact begins: a frame test of its own, on a budget
             buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
-                                                 buffers, counts, np.int64(NO_LIMIT))
+                                                 buffers, counts, probe_leaf_pairs)
             touch1 = hit_a >= 0
-            find_touch1 = False
-        if touch0 != touch1:
-            buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, np.bool_(touch0),
-                                                      pair_margin, time_tol, dist_tol, state, buffers, counts)
-            if touch0:
-                return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
+            find_touch1 = not touch1  # given up: still unknown (the swept leaf pairs below tell)
+        if touch0 and not touch1:  # (touch1 unknown if find_touch1)
+            buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, np.bool_(True),
+                                                      pair_margin, time_tol, dist_tol, probe_leaf_pairs, state,
+                                                      buffers, counts)
+            if find_touch1 and t == 1.0:  # touching up to the step's end: perhaps at frame k + 1 too
+                buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none,
+                                                     state.pair, buffers, counts, np.int64(NO_LIMIT))
+            return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
+        if touch1 and not touch0:
+            buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, np.bool_(False),
+                                                      pair_margin, time_tol, dist_tol, probe_leaf_pairs, state,
+                                                      buffers, counts)
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
     if n_sub > 1:
         if find_touch1:
-            none = np.int64(-1)  # not a literal (see above _candidates)
             buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
                                                  buffers, counts, np.int64(NO_LIMIT))
         buffers, t_first, t_last, tri_a, tri_b = _sub_stepped_window(
@@ -660,7 +666,6 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
                                               n_leaves, buffers, counts)
             touch1 = hit_a >= 0
         if touch0 != touch1:
-            none = np.int64(-1)  # not a literal (see above _candidates)
             buffers, t, tri_a, tri_b = _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves,
                                                          np.bool_(touch0), -np.inf if touch0 else np.inf, none,
                                                          none, time_tol, dist_tol, state, buffers, counts)
@@ -696,12 +701,6 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
 #: a moment near a one-sided contact's unknown end: the end is then known to within
 #: 2^-CONTACT_PROBES of the step.
 CONTACT_PROBES = 5
-#: A probe gives up (as if the objects did not touch then: the answer stays right, only
-#: the descent after the probes covers more) after this many leaf pairs without a
-#: touching triangle pair. It looks near the last touching pair found first, so a
-#: contact there is usually found in the first few; proving that nothing touches would
-#: take a descent of all leaf pairs near the patch.
-PROBE_LEAF_PAIRS = 64
 
 
 @njit_borrowing
@@ -712,6 +711,23 @@ def probes_pair(ps, a, b, probed_faces):
     mesh_b = ps.object_mesh[b]
     return min(ps.face_start[mesh_a + 1] - ps.face_start[mesh_a],
                ps.face_start[mesh_b + 1] - ps.face_start[mesh_b]) >= probed_faces
+
+
+@njit_borrowing
+def _pair_substeps(ps, rp0, motion, a, b):
+    """motion.substeps of objects a and b over a step from poses rp0 (N, 3, 4)."""
+    mesh_a = ps.object_mesh[a]
+    mesh_b = ps.object_mesh[b]
+    return substeps(motion[a], motion[b], _world_centre(ps.centre, mesh_a, rp0, a), ps.sphere_radius[mesh_a],
+                    _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
+
+
+@njit_borrowing
+def _probed(ps, rp0, motion, a, b, rule, probed_faces):
+    """Whether a search of objects a and b for one end of a contact starts with probes
+    (_probed_window): big meshes (probes_pair) under screw motion without sub-steps."""
+    return (rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces)
+            and _pair_substeps(ps, rp0, motion, a, b) == 1)
 
 
 @njit_borrowing
@@ -731,16 +747,16 @@ def _poses_at(ps, rp0, rp1, motion, static, o, t, out):
 
 @njit(cache=True, inline="always")
 def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pair_margin, time_tol, dist_tol,
-                   state, buffers, counts):
+                   probe_leaf_pairs, state, buffers, counts):
     """_one_sided_window of objects a and b under screw motion (touching at the step's
     start, backwards, or only at its end), from a descent over only the part of the step
     where the answer can lie. CONTACT_PROBES frame tests at moments in between
     (bisection: each probes the moment halfway between the latest (earliest) one found
     touching and the first (last) one not found touching; a probe gives up after
-    PROBE_LEAF_PAIRS leaf pairs) give a moment `known` at which they touch; the contact
-    ends (begins) no earlier (later) than that, so the swept descent needs only cover
-    [known, 1] ([0, known]): a screw motion of its own between the poses there (as a
-    sub-step). Each probe looks first near the triangle pair the last one found (the first
+    probe_leaf_pairs leaf pairs, config.PROBE_LEAF_PAIRS) give a moment `known` at which
+    they touch; the contact ends (begins) no earlier (later) than that, so the swept
+    descent needs only cover [known, 1] ([0, known]): a screw motion of its own between
+    the poses there (as a sub-step). Each probe looks first near the triangle pair the last one found (the first
     probe, in the descent's own order: what a probe finds depends on the scene only, not on
     which pair the frame tests found, so neither chunks of steps nor --triangle-pairs
     change the answer). Returns _one_sided_window's (buffers, t, tri_a, tri_b)."""
@@ -755,7 +771,7 @@ def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pai
             _poses_at(ps, rp0, rp1, motion, static, o, mid, sub.pose0)
             probe.margin[o] = object_margin(ps, sub.pose0, sub.pose0, o)
         buffers, hit_a, hit_b = _descent_hit(ps, sub.pose0, _probe_key(k, mid), a, b, static, probe, near_a, near_b,
-                                             state.pair, buffers, counts, np.int64(PROBE_LEAF_PAIRS))
+                                             state.pair, buffers, counts, probe_leaf_pairs)
         if hit_a >= 0:
             known = mid
             near_a = hit_a
@@ -883,7 +899,7 @@ class Step(NamedTuple):
 
 @njit_entry
 def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, find_frames,
-                   interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces):
+                   interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces, probe_leaf_pairs):
     """Continuous scan of motion steps k in [step_start, step_stop) (frame k -> k+1).
 
     ps: PackedScene; poses float64 (T, N, 3, 4); static bool (N,) (objects that never
@@ -900,7 +916,8 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     config.ONE_SIDED_LEAVES (how large a search of one end of a contact reads its leaf
     pairs in time order; only affects speed); probed_faces: config.PROBED_FACES (how
     large both meshes of a pair whose search of one end starts with probes; moves
-    contact times by at most time_tol). Returns (hits int64 (H,
+    contact times by at most time_tol); probe_leaf_pairs: config.PROBE_LEAF_PAIRS (when
+    a probe gives up; only affects speed). Returns (hits int64 (H,
     HIT_WIDTH), the frame tests' hits (none without find_frames; the first pair
     found, but the smallest at frame 0 when step_start is 0: a contact that begins
     there reports it without a search of its own, HIT_SMALLEST),
@@ -965,6 +982,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             row0 = key_row(keys0, key)
             touch0 = row0 >= 0
             hit_a = hit_b = -1  # a triangle pair touching at frame k + 1 found here (find_frames)
+            find_touch1 = find_frames and not touch0  # touch1 is not known yet
             if not find_frames:
                 touch1 = key_row(keys1, key) >= 0
             elif touch0:  # as discrete.scan_frames: the pair that touched at frame k first
@@ -972,9 +990,12 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, near_a,
                                    near_b, state.pair, buffers.frame_pairs, counts):
                     hit_a, hit_b = near_a, near_b
-                else:
+                else:  # a probed search finds the end of the contact at less cost than a proof of none
+                    probed = _probed(ps, rp0, motion, a, b, rule, probed_faces)
+                    budget = probe_leaf_pairs if probed else NO_LIMIT
                     buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, near_a, near_b,
-                                                         state.pair, buffers, counts, np.int64(NO_LIMIT))
+                                                         state.pair, buffers, counts, np.int64(budget))
+                    find_touch1 = probed and hit_a < 0  # given up: _pair_window finds out
                 touch1 = hit_a >= 0
             else:
                 touch1 = False
@@ -986,11 +1007,11 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
                     ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, np.bool_(touch0),
-                    np.bool_(touch1), np.bool_(find_frames and not touch0), one_sided_leaves, probed_faces, state,
+                    np.bool_(touch1), np.bool_(find_touch1), one_sided_leaves, probed_faces, probe_leaf_pairs, state,
                     buffers, counts)
-                if not touch0:
+                if find_touch1:
                     hit_a, hit_b = found_a, found_b
-                elif t_first < np.inf:
+                if touch0 and t_first < np.inf:
                     tri_a, tri_b = tris0[row0, 0], tris0[row0, 1]
             if hit_a >= 0:
                 hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, np.int64(1), hit_a, hit_b, np.bool_(False))

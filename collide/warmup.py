@@ -202,7 +202,7 @@ def _scan_intervals(ps, poses, static, pairs):
     from . import config
     from .swept import scan_intervals
     scan_intervals(ps, poses, static, pairs, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0, True, 1, 1e-6,
-                   1e-9, config.ONE_SIDED_LEAVES, config.PROBED_FACES)
+                   1e-9, config.ONE_SIDED_LEAVES, config.PROBED_FACES, config.PROBE_LEAF_PAIRS)
 
 
 def _triangle_pair_contact(ps, poses, static, pairs):

@@ -201,11 +201,12 @@ def _wavy_plate(n, height, sign=1.0):
     return trimesh.Trimesh(vertices, faces, process=False)
 
 
-def _chattering_plates(tmp_path, n_frames, turn_deg):
+def _chattering_plates(tmp_path, n_frames, turn_deg, clear=0.02):
     """A wavy plate (ground, static) and a lid of nearly its shape above it (2 x 40^2
-    triangles each), the lid pressed 0.02 into the ground at even frames and lifted 0.02
-    clear of it at odd ones, sliding 0.01 and turning turn_deg about z per frame: at every
-    step a contact over much of the plates ends or begins."""
+    triangles each), the lid pressed 0.02 into the ground at even frames and lifted
+    ``clear`` clear of it at odd ones (pressed in at all frames if negative), sliding 0.01
+    and turning turn_deg about z per frame: at every step a contact over much of the
+    plates ends or begins."""
     def ground(x, y):
         return 0.1 * np.sin(3.0 * x) * np.sin(2.0 * y)
 
@@ -226,7 +227,7 @@ def _chattering_plates(tmp_path, n_frames, turn_deg):
         world = plate.vertices @ matrix[k, 0, :3, :3].T
         world[:, 0] += shift[k]
         gap = world[:, 2] - ground(world[:, 0], world[:, 1])  # lid over ground at z offset 0
-        matrix[k, 0, :3, 3] = [shift[k], 0.0, -gap.min() + (-0.02 if k % 2 == 0 else 0.02)]
+        matrix[k, 0, :3, 3] = [shift[k], 0.0, -gap.min() + (-0.02 if k % 2 == 0 else clear)]
     traj = write_trajectory(tmp_path / "traj.h5", 0.01 * np.arange(n_frames), ["lid"], matrix=matrix)
     return meshes, traj
 
@@ -313,6 +314,40 @@ def test_probed_search_of_a_patch_lifting_off_keeps_every_sampled_contact(tmp_pa
         first, last = reference["t_begin"][k], reference["t_end"][k]
         assert begin <= first + 1e-12 and first - step <= begin + tol, (k, begin, first)
         assert end >= last - 1e-12 and end <= last + step + tol, (k, end, last)
+
+
+@pytest.mark.parametrize("clear", [0.02, -0.01], ids=["lifted-at-odd-frames", "pressed-throughout"])
+def test_probed_search_whose_probes_all_give_up_is_the_plain_search(tmp_path, monkeypatch, clear):
+    """With config.PROBE_LEAF_PAIRS = 0 every probe gives up at once, and so does the frame
+    test at a step's end of a pair touching at its start (a probed search stands in for
+    it: the frame is tested in full only when the contact lasts to the step's end): each
+    search then covers the whole step, from the step's poses (the sub-screw over [0, 1]
+    is the step's own), and the output equals the scan without probes bit for bit (and so
+    do the frames found touching), both when contact ends or begins in every step and
+    when the plates touch throughout."""
+    from collide import pipeline
+    from collide.rows import HIT_A, HIT_B, HIT_FRAME
+    frames_touching = []  # (frame, a, b) of each scan's frame tests (the kernel's hits)
+    run_steps = pipeline._run_steps
+
+    def recording(*args, **kwargs):
+        hits, *rest = run_steps(*args, **kwargs)
+        frames_touching.append(sorted(map(tuple, hits[:, [HIT_FRAME, HIT_A, HIT_B]].tolist())))
+        return (hits, *rest)
+    monkeypatch.setattr(pipeline, "_run_steps", recording)
+    meshes, traj = _chattering_plates(tmp_path, 7, 0.5, clear)
+    with monkeypatch.context() as patch:
+        patch.setattr(config, "PROBED_FACES", 10 ** 9)
+        plain = collide.scan(meshes, traj, mode="continuous")
+    monkeypatch.setattr(config, "PROBED_FACES", 0)
+    monkeypatch.setattr(config, "PROBE_LEAF_PAIRS", 0)
+    gave_up = collide.scan(meshes, traj, mode="continuous")
+    assert plain.contacts["t_begin"].size == (4 if clear > 0 else 1)
+    for name, column in plain.contacts.items():
+        np.testing.assert_array_equal(gave_up.contacts[name], column, err_msg=name)
+    assert gave_up.stats["work"]["object_pairs"] > plain.stats["work"]["object_pairs"]  # the probes ran
+    assert len(frames_touching) == 2 and frames_touching[0] == frames_touching[1]
+    assert len(frames_touching[0]) == (4 if clear > 0 else 7)  # the frames the lid is pressed in
 
 
 def test_frame_contacts_are_keyed_by_frame_and_pair():

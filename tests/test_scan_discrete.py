@@ -247,7 +247,8 @@ def test_step_scan_names_the_smallest_pair_at_its_first_frame(seed, monkeypatch)
     no_keys, no_tris = np.zeros(0, np.int64), np.zeros((0, 2), np.int64)
     for start in (0, 1):
         hits = scan_intervals(ps, poses, static, pairs, no_keys, no_tris, start, 2, True, INTERPOLATIONS["screw"],
-                              config.TIME_TOL, 1e-9, config.ONE_SIDED_LEAVES, config.PROBED_FACES)[0]
+                              config.TIME_TOL, 1e-9, config.ONE_SIDED_LEAVES, config.PROBED_FACES,
+                              config.PROBE_LEAF_PAIRS)[0]
         assert (hits[:, HIT_FRAME] == start).any()
         for f, a, b, tri_a, tri_b, smallest in hits[:, [HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_SMALLEST]]:
             at = every[(every[:, PAIR_FRAME] == f) & (every[:, PAIR_A] == a) & (every[:, PAIR_B] == b)]

@@ -69,10 +69,10 @@ ONE_SIDED_LEAVES = 256
 #: tolerance. Triangles.
 PROBED_FACES = 4096
 
-#: Each probe (and, between such meshes, a frame test whose answer a probed search can
-#: stand in for) gives up after this many leaf pairs without a touching triangle pair:
-#: then as if the objects did not touch (a probe) or as if not known (a frame test).
-#: The answers stay right; only the descent after the probes covers more of the step.
+#: Each probe gives up after this many leaf pairs without a touching triangle pair (then
+#: as if the objects did not touch: the answer stays right, only the descent after the
+#: probes covers more of the step); so does the frame test at a step's end of two such
+#: meshes apart at its start, which then takes the search without probes.
 #: Probes look near the last touching pair found first, so a contact there is usually
 #: found in the first few leaf pairs, while proving that nothing touches would take all
 #: the leaf pairs near the patch. Leaf pairs (0: every probe and such frame test gives

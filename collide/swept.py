@@ -55,7 +55,8 @@ where the contact's end (beginning) can lie, each stopping at the first touching
 triangle pair, find a moment the objects touch; the swept descent then covers
 only the step after it (before it), where few leaf pairs come near
 (_probed_window; contact times move by at most the time tolerance). A pair of
-such meshes apart at the step's start gets its frame test first.
+such meshes apart at the step's start gets its frame test first (one that gives
+up after config.PROBE_LEAF_PAIRS leaf pairs: then the search without probes).
 
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
@@ -611,36 +612,32 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     """Contact window (t_first, t_last, tri_a, tri_b) of objects a and b over step k
     (t_first = inf: no contact), whole or in sub-steps (motion.substeps). touch0,
     touch1: whether they touch at the step's first, last frame (then t_first = 0,
-    t_last = 1: only the other end is searched). find_touch1: touch1 is not known
-    yet (with touch0 only for a pair that _probed: its frame test gave up); find it
-    (state.frame), with a triangle pair (hit_a, hit_b) touching at frame k + 1, (-1,
-    -1) if none. A pair touching at neither frame comes here only if its
+    t_last = 1: only the other end is searched). find_touch1: (not touch0) touch1 is
+    not known yet; find it (state.frame), with a triangle pair (hit_a, hit_b) touching
+    at frame k + 1, (-1, -1) if none. A pair touching at neither frame comes here only if its
     swept spheres meet (spheres_meet). state: Step. Returns (buffers, t_first, t_last,
     tri_a, tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
     always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window). probed_faces:
-    config.PROBED_FACES (_probed: then a search for one end starts with probes,
-    _probed_window; a pair apart at the step's start gets a frame test at k + 1 of its
-    own first, on a budget; one touching there whose frame test at k + 1 gave up is
-    searched for the contact's end, and tested at k + 1 in full only if the contact
-    lasts to the step's end)."""
+    config.PROBED_FACES (under screw motion without sub-steps, between big meshes
+    (probes_pair), a search for one end starts with probes,
+    _probed_window, and a pair apart at the step's start gets a frame test at k + 1 of
+    its own first, giving up after probe_leaf_pairs leaf pairs: then its frame test
+    comes from the swept leaf pairs)."""
     pair_margin = margin[a] + margin[b] + dist_tol
     hit_a = hit_b = -1
     n_sub = _pair_substeps(ps, rp0, motion, a, b)
     none = np.int64(-1)  # not a literal (see above _candidates)
-    if n_sub == 1 and rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces):  # _probed
+    if n_sub == 1 and rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces):
         if find_touch1 and not touch0:  # whether a contact begins: a frame test of its own, on a budget
             buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
                                                  buffers, counts, probe_leaf_pairs)
             touch1 = hit_a >= 0
             find_touch1 = not touch1  # given up: still unknown (the swept leaf pairs below tell)
-        if touch0 and not touch1:  # (touch1 unknown if find_touch1)
+        if touch0 and not touch1:
             buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, np.bool_(True),
                                                       pair_margin, time_tol, dist_tol, probe_leaf_pairs, state,
                                                       buffers, counts)
-            if find_touch1 and t == 1.0:  # touching up to the step's end: perhaps at frame k + 1 too
-                buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none,
-                                                     state.pair, buffers, counts, np.int64(NO_LIMIT))
             return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
         if touch1 and not touch0:
             buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, np.bool_(False),
@@ -720,14 +717,6 @@ def _pair_substeps(ps, rp0, motion, a, b):
     mesh_b = ps.object_mesh[b]
     return substeps(motion[a], motion[b], _world_centre(ps.centre, mesh_a, rp0, a), ps.sphere_radius[mesh_a],
                     _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
-
-
-@njit_borrowing
-def _probed(ps, rp0, motion, a, b, rule, probed_faces):
-    """Whether a search of objects a and b for one end of a contact starts with probes
-    (_probed_window): big meshes (probes_pair) under screw motion without sub-steps."""
-    return (rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces)
-            and _pair_substeps(ps, rp0, motion, a, b) == 1)
 
 
 @njit_borrowing
@@ -990,12 +979,9 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
                 if _still_touching(ps, rp1, k + 1, a, b, static, state.frame.stamp, state.frame.world, near_a,
                                    near_b, state.pair, buffers.frame_pairs, counts):
                     hit_a, hit_b = near_a, near_b
-                else:  # a probed search finds the end of the contact at less cost than a proof of none
-                    probed = _probed(ps, rp0, motion, a, b, rule, probed_faces)
-                    budget = probe_leaf_pairs if probed else NO_LIMIT
+                else:
                     buffers, hit_a, hit_b = _descent_hit(ps, rp1, k + 1, a, b, static, state.frame, near_a, near_b,
-                                                         state.pair, buffers, counts, np.int64(budget))
-                    find_touch1 = probed and hit_a < 0  # given up: _pair_window finds out
+                                                         state.pair, buffers, counts, np.int64(NO_LIMIT))
                 touch1 = hit_a >= 0
             else:
                 touch1 = False

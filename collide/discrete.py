@@ -84,10 +84,6 @@ FIRST_HIT_BATCH = 8
 #: and when it looks near the previous frame's pair first (its first leaf pairs usually touch)
 NEAR_HIT_BATCH = 1
 
-#: _pair_triangles' max_leaf_pairs when the search must not give up (passed as
-#: np.int64(NO_LIMIT): a module constant passed as it is would compile another copy)
-NO_LIMIT = np.iinfo(np.int64).max
-
 
 @njit_borrowing
 def object_margins(ps, rp0, rp1, out):
@@ -212,16 +208,15 @@ def _centroid(ps, o, t, out):
 
 @njit(cache=True, inline="always")  # part of its callers: no reference counting of ps per object pair
 def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_only, near_a, near_b, scratch,
-                    stack, leaves, tri, counts, max_leaf_pairs):
+                    stack, leaves, tri, counts):
     """Intersecting triangle pairs of objects a and b at frame f (pose rp (N, 3, 4); still:
     zero motion rows (N, MOTION_WIDTH)): all of them, or the first one found when
     first_only (the descent hands over its leaf pairs FIRST_HIT_BATCH at a time and
     stops there). near_a, near_b: a triangle pair (mesh-local ids) near which one is
     likely (the pair that touched at the frame before), or -1, -1 if none: with a pair,
     the descent visits the nodes nearest their centroids first (broad.overlapping_leaves'
-    ``toward``) and hands over NEAR_HIT_BATCH leaf pairs at a time. With first_only, the
-    search also gives up (no pair found) once it has tested max_leaf_pairs leaf pairs.
-    Returns (stack, leaves, tri, n_tri)."""
+    ``toward``) and hands over NEAR_HIT_BATCH leaf pairs at a time. Returns (stack,
+    leaves, tri, n_tri)."""
     top = start_descent(ps, rp, rp, still, a, b, scratch, stack)
     counts[COUNT_OBJECT_PAIRS] += 1
     batch = (NEAR_HIT_BATCH if near_a >= 0 else FIRST_HIT_BATCH) if first_only else np.iinfo(np.int64).max
@@ -234,12 +229,10 @@ def _pair_triangles(ps, rp, still, f, a, b, margin, static, stamp, world, first_
     obj_a = _placed(ps, rp, a, f, static, stamp, world)
     obj_b = _placed(ps, rp, b, f, static, stamp, world)
     n_tri = np.int64(0)
-    tested = np.int64(0)
-    while top > 0 and not (first_only and (n_tri > 0 or tested >= max_leaf_pairs)):
+    while top > 0 and not (first_only and n_tri > 0):
         stack, top, leaves, n_leaves = overlapping_leaves(lo, hi, first, count, ps.leaf_box, shift_a, shift_b, pose,
                                                           motion, RULE_POSE, margin, stack, top, leaves, batch,
                                                           counts, toward, near_a >= 0)
-        tested += n_leaves
         if n_leaves > 0:
             tri = with_room(tri, n_tri, n_tri + triangle_pair_count(leaves, n_leaves, count))
             n_tri = intersecting_triangles(leaves, n_leaves, first, count, prim_ids, obj_a, obj_b, tri, n_tri,
@@ -330,7 +323,7 @@ def frame_test(ps, rp, f, static, pairs, margin, still, stamp, world, sweep_orde
         else:
             stack, leaves, tri, n_tri = _pair_triangles(ps, rp, still, f, a, b, margin[a] + margin[b], static,
                                                         stamp, world, first_only, near_a, near_b, scratch, stack,
-                                                        leaves, tri, counts, np.int64(NO_LIMIT))
+                                                        leaves, tri, counts)
         if n_tri == 0:
             continue
         tri_a, tri_b = _smallest_pair(tri, n_tri)

@@ -417,7 +417,7 @@ def test_first_hit_descent_looks_near_the_last_frames_pair_first():
     it finds an intersecting pair exactly when the exhaustive search finds any, one of
     those, and, looking near the last one first, tests fewer node pairs than a descent
     from the roots in its fixed order (a sphere sliding and turning through another)."""
-    from collide.discrete import NO_LIMIT, _pair_triangles, pair_scratch
+    from collide.discrete import _pair_triangles, pair_scratch
     from collide.motion import MOTION_WIDTH
     from collide.narrow import new_stamps
     from collide.rows import COUNT_NODE_PAIRS, COUNT_WIDTH
@@ -430,7 +430,7 @@ def test_first_hit_descent_looks_near_the_last_frames_pair_first():
     def search(f, first_only, near):
         counts = np.zeros(COUNT_WIDTH, np.int64)
         *_, tri, n = _pair_triangles(ps, poses[f], still, f, 0, 1, 1e-9, static, stamp, world, first_only, near[0],
-                                     near[1], scratch, stack, leaves, np.empty((4, 2), np.int64), counts, NO_LIMIT)
+                                     near[1], scratch, stack, leaves, np.empty((4, 2), np.int64), counts)
         return set(map(tuple, tri[:n].tolist())), counts[COUNT_NODE_PAIRS]
 
     work = {"near": 0, "roots": 0}
@@ -448,37 +448,50 @@ def test_first_hit_descent_looks_near_the_last_frames_pair_first():
     assert work["near"] < 0.8 * work["roots"], work
 
 
-def test_first_hit_descent_gives_up_after_its_budget_of_leaf_pairs():
-    """discrete._pair_triangles with max_leaf_pairs (a probe of swept._probed_window):
-    it reports an intersecting pair only if the exhaustive search has it, and none
-    after testing max_leaf_pairs leaf pairs (plus the rest of the batch that reached
-    it) without finding one; with no limit it finds one whenever any exists."""
-    from collide.discrete import NO_LIMIT, _pair_triangles, pair_scratch
+def test_probe_gives_up_after_its_budget_of_leaf_pairs():
+    """swept._probe_hit (a probe of swept._probed_window: the frame test's first-hit
+    descent on a budget) reports an intersecting pair only if the exhaustive search has
+    it, none after testing max_leaf_pairs leaf pairs (plus the rest of the batch that
+    reached them) without finding one, and, with no limit, one whenever any exists; with
+    no guide and with the last frame's pair as one."""
+    from collide.discrete import _pair_triangles, pair_scratch
     from collide.motion import MOTION_WIDTH
     from collide.narrow import new_stamps
     from collide.rows import COUNT_LEAF_PAIRS, COUNT_WIDTH
+    from collide.swept import Buffers, FrameTests, _probe_hit
     ps = _two_spheres()
     poses = _sliding_poses(30, 0.05)
     still, static = np.zeros((2, MOTION_WIDTH)), np.zeros(2, bool)
-    world, stamp = np.empty((ps.world_start[2], 3)), new_stamps(ps.world_start[2])
-    scratch, stack, leaves = pair_scratch(), np.empty((4, 2), np.int64), np.empty((4, 2), np.int64)
+    n_world = ps.world_start[2]
+    frame = FrameTests(np.empty((n_world, 3)), new_stamps(n_world), np.full(2, 1e-9 / 2), still)
+    scratch = pair_scratch()
 
-    def search(f, first_only, budget):
+    def every_pair(f):
         counts = np.zeros(COUNT_WIDTH, np.int64)
-        *_, tri, n = _pair_triangles(ps, poses[f], still, f, 0, 1, 1e-9, static, stamp, world, first_only, -1, -1,
-                                     scratch, stack, leaves, np.empty((4, 2), np.int64), counts, budget)
-        return set(map(tuple, tri[:n].tolist())), counts[COUNT_LEAF_PAIRS]
+        *_, tri, n = _pair_triangles(ps, poses[f], still, f, 0, 1, 1e-9, static, frame.stamp, frame.world, False, -1,
+                                     -1, scratch, np.empty((4, 2), np.int64), np.empty((4, 2), np.int64),
+                                     np.empty((4, 2), np.int64), counts)
+        return set(map(tuple, tri[:n].tolist()))
 
-    gave_up = 0
+    def probe(f, near, budget):
+        counts = np.zeros(COUNT_WIDTH, np.int64)
+        buffers = Buffers(*(np.empty((4, 2), np.int64) for _ in range(4)))
+        _, tri_a, tri_b = _probe_hit(ps, poses[f], f, 0, 1, static, frame, near[0], near[1], scratch, buffers,
+                                     counts, budget)
+        return ({(tri_a, tri_b)} if tri_a >= 0 else set()), counts[COUNT_LEAF_PAIRS]
+
+    gave_up, previous = 0, (-1, -1)
     for f in range(poses.shape[0]):
-        every, _ = search(f, False, NO_LIMIT)
+        every = every_pair(f)
         assert every
-        found, _ = search(f, True, NO_LIMIT)
-        assert len(found) == 1 and found <= every
-        for budget in (1, 4, 16):
-            found, tested = search(f, True, budget)
-            assert found <= every and len(found) <= 1
-            if not found:
-                gave_up += 1
-                assert tested < budget + 8  # FIRST_HIT_BATCH leaf pairs at a time
+        for near in ((-1, -1), previous):
+            found, _ = probe(f, near, np.iinfo(np.int64).max)
+            assert len(found) == 1 and found <= every
+            for budget in (1, 4, 16):
+                found, tested = probe(f, near, budget)
+                assert found <= every
+                if not found:
+                    gave_up += 1
+                    assert tested < budget + 8  # FIRST_HIT_BATCH leaf pairs at a time
+        previous = min(every)
     assert gave_up > 0  # some searches did give up

@@ -69,14 +69,15 @@ ONE_SIDED_LEAVES = 256
 #: tolerance. Triangles.
 PROBED_FACES = 4096
 
-#: Each probe gives up after this many leaf pairs without a touching triangle pair (then
-#: as if the objects did not touch: the answer stays right, only the descent after the
-#: probes covers more of the step); so does the frame test at a step's end of two such
-#: meshes apart at its start, which then takes the search without probes.
-#: Probes look near the last touching pair found first, so a contact there is usually
-#: found in the first few leaf pairs, while proving that nothing touches would take all
-#: the leaf pairs near the patch. Leaf pairs (0: every probe and such frame test gives
-#: up at once).
+#: Each probe gives up after this many leaf pairs without a touching triangle pair
+#: (one that looks near a pair an earlier probe found, after an eighth of them:
+#: swept.NEAR_PROBE_SHARE), then counts as if the objects did not touch: the answer
+#: stays right, only the descent after the probes covers more of the step. So does the
+#: frame test at a step's end of two such meshes apart at its start, which then takes
+#: the search without probes. A contact near the pair looked at first is usually found
+#: in the first few leaf pairs, while proving that nothing touches would take all the
+#: leaf pairs near the patch. Leaf pairs (0: every probe and such frame test gives up
+#: at once).
 PROBE_LEAF_PAIRS = 64
 
 #: Linear-vertex interpolation: scan warns where the straight vertex paths depart

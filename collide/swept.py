@@ -735,6 +735,12 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
 #: a moment near a one-sided contact's unknown end: the end is then known to within
 #: 2^-CONTACT_PROBES of the step.
 CONTACT_PROBES = 5
+#: A probe that looks near the pair the last one found gives up after this fraction of
+#: config.PROBE_LEAF_PAIRS: where that contact goes on, the first few leaf pairs touch;
+#: where it has ended, searching further afield costs more than the descent it could
+#: shorten (lift scenes of benchmarks/bench_meshsize.py, kernel time against probes on
+#: the full budget: 0.85-1.07x over four scenes).
+NEAR_PROBE_SHARE = 8
 
 
 @njit_borrowing
@@ -779,7 +785,8 @@ def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pai
     where the answer can lie. CONTACT_PROBES frame tests at moments in between
     (bisection: each probes the moment halfway between the latest (earliest) one found
     touching and the first (last) one not found touching; a probe gives up after
-    probe_leaf_pairs leaf pairs, config.PROBE_LEAF_PAIRS) give a moment `known` at which
+    probe_leaf_pairs leaf pairs, config.PROBE_LEAF_PAIRS, or an eighth of that when it
+    looks near a pair found before: NEAR_PROBE_SHARE) give a moment `known` at which
     they touch; the contact ends (begins) no earlier (later) than that, so the swept
     descent needs only cover [known, 1] ([0, known]): a screw motion of its own between
     the poses there (as a sub-step). Each probe looks first near the triangle pair the last one found (the first
@@ -796,8 +803,9 @@ def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pai
         for o in (a, b):
             _poses_at(ps, rp0, rp1, motion, static, o, mid, sub.pose0)
             probe.margin[o] = object_margin(ps, sub.pose0, sub.pose0, o)
+        budget = probe_leaf_pairs // NEAR_PROBE_SHARE if near_a >= 0 else probe_leaf_pairs
         buffers, hit_a, hit_b = _probe_hit(ps, sub.pose0, _probe_key(k, mid), a, b, static, probe, near_a, near_b,
-                                           state.pair, buffers, counts, probe_leaf_pairs)
+                                           state.pair, buffers, counts, budget)
         if hit_a >= 0:
             known = mid
             near_a = hit_a

@@ -658,12 +658,12 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     swept spheres meet (spheres_meet). state: Step. Returns (buffers, t_first, t_last,
     tri_a, tri_b, hit_a, hit_b). rule: the descent's broad rule (RULE_SWEPT_RIGID under screw
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
-    always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window). probed_faces:
-    config.PROBED_FACES (under screw motion without sub-steps, between big meshes
-    (probes_pair), a search for one end starts with probes,
-    _probed_window, and a pair apart at the step's start gets a frame test at k + 1 of
-    its own first, giving up after probe_leaf_pairs leaf pairs: then its frame test
-    comes from the swept leaf pairs)."""
+    always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window).
+    probed_faces: config.PROBED_FACES (under screw motion without sub-steps, between big
+    meshes (probes_pair), a search for one end starts with probes, _probed_window, and a
+    pair apart at the step's start gets a frame test at k + 1 of its own first, giving up
+    after probe_leaf_pairs leaf pairs: then its frame test comes from the swept leaf
+    pairs)."""
     pair_margin = margin[a] + margin[b] + dist_tol
     hit_a = hit_b = -1
     n_sub = _pair_substeps(ps, rp0, motion, a, b)
@@ -789,10 +789,11 @@ def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pai
     looks near a pair found before: NEAR_PROBE_SHARE) give a moment `known` at which
     they touch; the contact ends (begins) no earlier (later) than that, so the swept
     descent needs only cover [known, 1] ([0, known]): a screw motion of its own between
-    the poses there (as a sub-step). Each probe looks first near the triangle pair the last one found (the first
-    probe, in the descent's own order: what a probe finds depends on the scene only, not on
-    which pair the frame tests found, so neither chunks of steps nor --triangle-pairs
-    change the answer). Returns _one_sided_window's (buffers, t, tri_a, tri_b)."""
+    the poses there (as a sub-step: the same path). Each probe looks first near the
+    triangle pair the last one found; the first, in the descent's own order: what the
+    probes find depends on the scene only, not on which pair the frame tests found, so
+    neither chunks of steps nor --triangle-pairs change the answer. Returns
+    _one_sided_window's (buffers, t, tri_a, tri_b)."""
     sub = state.sub
     probe = state.probe
     near_a = near_b = np.int64(-1)

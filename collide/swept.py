@@ -1017,7 +1017,6 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             row0 = key_row(keys0, key)
             touch0 = row0 >= 0
             hit_a = hit_b = -1  # a triangle pair touching at frame k + 1 found here (find_frames)
-            find_touch1 = find_frames and not touch0  # touch1 is not known yet
             if not find_frames:
                 touch1 = key_row(keys1, key) >= 0
             elif touch0:  # as discrete.scan_frames: the pair that touched at frame k first
@@ -1039,11 +1038,11 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
             else:
                 buffers, t_first, t_last, tri_a, tri_b, found_a, found_b = _pair_window(
                     ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, dist_tol, np.bool_(touch0),
-                    np.bool_(touch1), np.bool_(find_touch1), one_sided_leaves, probed_faces, probe_leaf_pairs, state,
-                    buffers, counts)
-                if find_touch1:
+                    np.bool_(touch1), np.bool_(find_frames and not touch0), one_sided_leaves, probed_faces,
+                    probe_leaf_pairs, state, buffers, counts)
+                if not touch0:
                     hit_a, hit_b = found_a, found_b
-                if touch0 and t_first < np.inf:
+                elif t_first < np.inf:
                     tri_a, tri_b = tris0[row0, 0], tris0[row0, 1]
             if hit_a >= 0:
                 hits, n_hits = append_hit(hits, n_hits, hit, k + 1, a, b, np.int64(1), hit_a, hit_b, np.bool_(False))

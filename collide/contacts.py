@@ -1,11 +1,13 @@
 """Contact tables: column layouts of the output and kernel rows -> contact intervals.
 
-Rows are grouped by sorting (numpy lexsort), never by scanning per object pair.
+Rows are grouped by sorting (numpy lexsort; a stable sort in the kernel that merges
+continuous contacts), never by scanning per object pair.
 """
 from typing import NamedTuple
 
 import numpy as np
 
+from .jit import njit, njit_entry
 from .rows import (
     HIT_A,
     HIT_B,
@@ -107,18 +109,6 @@ def intervals_from_hits(hits, times):
     return columns, Where(frame[first], np.zeros(first.size), hits[first, HIT_SMALLEST] == 0)
 
 
-def step_time(times, step, u, direction):
-    """Absolute times (float64 arrays) of fractions u of steps (frame step -> step + 1):
-    exact at u = 0 and 1, otherwise times[step] + u (times[step + 1] - times[step]) moved
-    one float toward ``direction`` (-inf for a begin, inf for an end), the conservative
-    side of its rounding. step, u and direction broadcast against each other."""
-    step = np.asarray(step, dtype=np.int64)
-    u = np.asarray(u, dtype=np.float64)
-    after = times[np.minimum(step + 1, times.shape[0] - 1)]
-    between = np.nextafter(times[step] + u * (after - times[step]), direction)
-    return np.where(u <= 0.0, times[step], np.where(u >= 1.0, after, between))
-
-
 def intervals_from_steps(ids, fractions, hits, times):
     """Continuous contact intervals.
 
@@ -133,73 +123,160 @@ def intervals_from_steps(ids, fractions, hits, times):
     interval's first item (frame hits before swept items at the same time, then the
     smallest pair). Returns (columns, where) as intervals_from_hits.
     """
-    ids = np.asarray(ids, dtype=np.int64).reshape(-1, SWEPT_WIDTH)
-    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1, TIMES_WIDTH)
-    hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
-    # one row per item, swept contacts first, then frame hits (few numpy calls: a short
-    # scan's post-processing is mostly their fixed cost)
-    items = np.concatenate([ids[:, _SWEPT_ITEM], hits[:, _HIT_ITEM]])
-    hit_time = times[hits[:, HIT_FRAME]]
-    swept_time = step_time(times, ids[:, SWEPT_STEP, None], fractions[:, [T_BEGIN, T_END]], _OUTWARD)
-    t0 = np.concatenate([swept_time[:, 0], hit_time])
-    t1 = np.concatenate([swept_time[:, 1], hit_time])
-    is_frame = np.arange(items.shape[0]) >= ids.shape[0]
-    first_found = np.concatenate([np.zeros(ids.shape[0], bool), hits[:, HIT_SMALLEST] == 0])
-    u = np.concatenate([fractions[:, T_BEGIN], np.zeros(hits.shape[0])])
-    order = merge_order(items[:, 0], items[:, 1], t0, is_frame, items[:, 2], items[:, 3])
-    items, t0, t1, is_frame, first_found, u = (x[order] for x in (items, t0, t1, is_frame, first_found, u))
-    a, b, tri_a, tri_b, step = items.T
-    new_pair = _new_pair(a, b)
-    reach = _running_max_by_group(t1, np.flatnonzero(new_pair))   # latest end so far within each pair
-    starts = new_pair.copy()
-    starts[1:] |= t0[1:] > reach[:-1]
-    first = np.flatnonzero(starts)  # an interval's items are contiguous: reduce each run
-    t_end = np.maximum.reduceat(t1, first) if first.size else np.zeros(0)
-    seen_at_frame = np.logical_or.reduceat(is_frame, first) if first.size else np.zeros(0, bool)
-    kind = np.where(seen_at_frame, KIND_FRAME, KIND_SWEPT)
-    columns = _contact_columns(a[first], b[first], t0[first], t_end, kind, tri_a[first], tri_b[first], times)
-    return columns, Where(step[first], u[first], first_found[first])
+    ids = np.ascontiguousarray(ids, dtype=np.int64).reshape(-1, SWEPT_WIDTH)
+    fractions = np.ascontiguousarray(fractions, dtype=np.float64).reshape(-1, TIMES_WIDTH)
+    hits = np.ascontiguousarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
+    times = np.ascontiguousarray(times, dtype=np.float64)
+    a, b, t_begin, t_end, frame_begin, frame_end, kind, tri_a, tri_b, step, u, first_found = merge_steps(
+        ids, fractions, hits, times)
+    values = {"object_a": a, "object_b": b, "t_begin": t_begin, "t_end": t_end, "frame_begin": frame_begin,
+              "frame_end": frame_end, "kind": kind, "tri_a": tri_a, "tri_b": tri_b}
+    columns = {name: values[name].astype(dtype, copy=False) if name in values else np.full(a.shape[0], np.nan)
+               for name, dtype in CONTACT_COLUMNS.items()}
+    return columns, Where(step, u, first_found)
 
 
-#: columns of swept rows and of frame hits that make an item: a, b, tri_a, tri_b, step (frame)
-_SWEPT_ITEM = [SWEPT_A, SWEPT_B, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_STEP]
-_HIT_ITEM = [HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_FRAME]
-#: step_time's direction for (begin, end): each rounded outward
-_OUTWARD = np.array([-np.inf, np.inf])
+@njit_entry
+def merge_steps(ids, fractions, hits, times):
+    """intervals_from_steps' merge in one kernel (a short scan's post-processing was
+    mostly the fixed cost of some fifty numpy calls): the items (swept rows, then frame
+    hits) ordered by _merge_order's six keys, then each object pair's run cut where an
+    item begins after every earlier one has ended. Returns, per interval (E,): object_a,
+    object_b int64, t_begin, t_end float64, frame_begin, frame_end int64, kind uint8,
+    tri_a, tri_b, step int64, u float64 (fraction of the step of the first item),
+    first_found bool."""
+    n_swept = ids.shape[0]
+    n = n_swept + hits.shape[0]
+    a = np.empty(n, np.int64)
+    b = np.empty(n, np.int64)
+    tri_a = np.empty(n, np.int64)
+    tri_b = np.empty(n, np.int64)
+    step = np.empty(n, np.int64)
+    t0 = np.empty(n)
+    t1 = np.empty(n)
+    u = np.empty(n)
+    is_frame = np.empty(n, np.bool_)
+    first_found = np.empty(n, np.bool_)
+    for r in range(n_swept):
+        a[r], b[r], step[r] = ids[r, SWEPT_A], ids[r, SWEPT_B], ids[r, SWEPT_STEP]
+        tri_a[r], tri_b[r] = ids[r, SWEPT_TRI_A], ids[r, SWEPT_TRI_B]
+        u[r] = fractions[r, T_BEGIN]
+        t0[r] = _step_time(times, step[r], fractions[r, T_BEGIN], -np.inf)
+        t1[r] = _step_time(times, step[r], fractions[r, T_END], np.inf)
+        is_frame[r] = False
+        first_found[r] = False
+    for h in range(hits.shape[0]):
+        r = n_swept + h
+        a[r], b[r], step[r] = hits[h, HIT_A], hits[h, HIT_B], hits[h, HIT_FRAME]
+        tri_a[r], tri_b[r] = hits[h, HIT_TRI_A], hits[h, HIT_TRI_B]
+        u[r] = 0.0
+        t0[r] = t1[r] = times[step[r]]
+        is_frame[r] = True
+        first_found[r] = hits[h, HIT_SMALLEST] == 0
+    order = _merge_order(a, b, t0, is_frame, tri_a, tri_b)
+    # cut each pair's run where an item begins after every earlier one has ended
+    starts = np.zeros(n, np.bool_)
+    reach = -np.inf
+    n_out = 0
+    for k in range(n):
+        r = order[k]
+        if k == 0 or a[r] != a[order[k - 1]] or b[r] != b[order[k - 1]]:
+            starts[k] = True
+            reach = t1[r]
+        else:
+            starts[k] = t0[r] > reach
+            reach = max(reach, t1[r])
+        n_out += starts[k]
+    out_a = np.empty(n_out, np.int64)
+    out_b = np.empty(n_out, np.int64)
+    t_begin = np.empty(n_out)
+    t_end = np.empty(n_out)
+    kind = np.empty(n_out, np.uint8)
+    out_tri_a = np.empty(n_out, np.int64)
+    out_tri_b = np.empty(n_out, np.int64)
+    out_step = np.empty(n_out, np.int64)
+    out_u = np.empty(n_out)
+    out_found = np.empty(n_out, np.bool_)
+    e = -1
+    for k in range(n):
+        r = order[k]
+        if starts[k]:
+            e += 1
+            out_a[e], out_b[e], t_begin[e], t_end[e] = a[r], b[r], t0[r], t1[r]
+            kind[e] = KIND_FRAME if is_frame[r] else KIND_SWEPT
+            out_tri_a[e], out_tri_b[e], out_step[e], out_u[e], out_found[e] = tri_a[r], tri_b[r], step[r], u[r], \
+                first_found[r]
+        else:
+            t_end[e] = max(t_end[e], t1[r])
+            if is_frame[r]:
+                kind[e] = KIND_FRAME
+    frame_begin = _frames_of_times(times, t_begin)
+    frame_end = _frames_of_times(times, t_end)
+    return (out_a, out_b, t_begin, t_end, frame_begin, frame_end, kind, out_tri_a, out_tri_b, out_step, out_u,
+            out_found)
 
 
-def merge_order(a, b, t0, is_frame, tri_a, tri_b):
-    """int64 indices sorting rows by (a, b, t0, frame hits first, tri_a, tri_b): the order of
-    np.lexsort of the six keys (stable), found by sorting on (a, b, t0) alone and then
-    ordering only the rows that tie there by the rest. Ties are common (a frame hit and
-    the swept contact that starts at its frame: nearly every row at 1000 bodies) but
-    almost all come in twos, which are put in order by one vectorised comparison;
-    sorting every row by every key took three times as long."""
-    pair = _pair_key(a, b)
-    order = np.lexsort((t0, pair))
-    p_s, t_s = pair[order], t0[order]
-    tied = (p_s[1:] == p_s[:-1]) & (t_s[1:] == t_s[:-1])  # row k + 1 ties with row k
-    if not tied.any():
-        return order
-    starts = np.flatnonzero(tied & np.append(True, ~tied[:-1]))  # first row of each run of ties
-    ends = np.flatnonzero(tied & np.append(~tied[1:], True)) + 1  # and its last row
-    two = ends - starts == 1
-    first, second = order[starts[two]], order[ends[two]]
-    swap = _after(first, second, is_frame, tri_a, tri_b)
-    order[starts[two][swap]], order[ends[two][swap]] = second[swap], first[swap]
-    if (~two).any():  # rare: three or more rows at one moment, sorted together, run by run
-        lo, hi = starts[~two], ends[~two] + 1
-        at = _concatenated_ranges(lo, hi)
-        run = np.repeat(np.arange(lo.size), hi - lo)
-        rows = order[at]
-        order[at] = rows[np.lexsort((tri_b[rows], tri_a[rows], ~is_frame[rows], run))]
+@njit(cache=True)
+def _step_time(times, step, u, direction):
+    """Absolute time of fraction u of step ``step`` (frame step -> step + 1): exact at u = 0
+    and 1, otherwise times[step] + u (times[step + 1] - times[step]) moved one float toward
+    ``direction`` (-inf for a begin, inf for an end), the conservative side of its rounding."""
+    after = times[min(step + 1, times.shape[0] - 1)]
+    if u <= 0.0:
+        return times[step]
+    if u >= 1.0:
+        return after
+    return np.nextafter(times[step] + u * (after - times[step]), direction)
+
+
+@njit(cache=True)
+def _frames_of_times(times, t):
+    """frame_of_time for float64 t (E,): int64 (E,)."""
+    k = np.searchsorted(times, t, side="right") - 1
+    return np.minimum(np.maximum(k, 0), times.shape[0] - 1)
+
+
+@njit(cache=True)
+def _merge_order(a, b, t0, is_frame, tri_a, tri_b):
+    """int64 indices sorting rows by (a, b, t0, frame hits first, tri_a, tri_b): the order
+    of np.lexsort of the six keys (stable). Two stable sorts give the order by (a, b, t0) (ids in
+    [0, 2**31): a * n + b orders the pairs), then each run of rows tied there is put in
+    order by (frame hits first, tri_a, tri_b) by insertion, which keeps equal rows in
+    input order (runs are short: mostly a frame hit and the swept row starting at it)."""
+    n = a.shape[0]
+    span = 1
+    for r in range(n):
+        span = max(span, a[r] + 1, b[r] + 1)
+    by_time = np.argsort(t0, kind="mergesort")
+    pair = np.empty(n, np.int64)
+    for k in range(n):
+        pair[k] = a[by_time[k]] * span + b[by_time[k]]
+    order = by_time[np.argsort(pair, kind="mergesort")]
+    lo = 0
+    while lo < n:
+        first = order[lo]
+        hi = lo + 1
+        while hi < n and a[order[hi]] == a[first] and b[order[hi]] == b[first] and t0[order[hi]] == t0[first]:
+            hi += 1
+        for k in range(lo + 1, hi):  # insertion sort of the tied run order[lo:hi]
+            r = order[k]
+            j = k
+            while j > lo and _comes_after(order[j - 1], r, is_frame, tri_a, tri_b):
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = r
+        lo = hi
     return order
 
 
-def _concatenated_ranges(lo, hi):
-    """int64: lo[0], ..., hi[0] - 1, then lo[1], ..., hi[1] - 1, and so on."""
-    sizes = hi - lo
-    return np.repeat(lo - np.cumsum(sizes) + sizes, sizes) + np.arange(sizes.sum())
+@njit(cache=True)
+def _comes_after(i, j, is_frame, tri_a, tri_b):
+    """Row i comes after row j by (frame hits first, tri_a, tri_b)."""
+    if is_frame[i] != is_frame[j]:
+        return is_frame[j]
+    if tri_a[i] != tri_a[j]:
+        return tri_a[i] > tri_a[j]
+    return tri_b[i] > tri_b[j]
 
 
 def _pair_key(a, b):
@@ -207,24 +284,6 @@ def _pair_key(a, b):
     more than the largest id. Sorting on one key instead of two is about 4x faster."""
     n = max(int(a.max()), int(b.max())) + 1 if a.size else 1
     return a.astype(np.int64) * n + b
-
-
-def _after(i, j, is_frame, tri_a, tri_b):
-    """bool: row i comes after row j by (frame hits first, tri_a, tri_b)."""
-    fi, fj = is_frame[i], is_frame[j]
-    same_kind = fi == fj
-    return ((fj & ~fi) | (same_kind & (tri_a[i] > tri_a[j]))
-            | (same_kind & (tri_a[i] == tri_a[j]) & (tri_b[i] > tri_b[j])))
-
-
-def _running_max_by_group(values, group_starts):
-    """Running maximum of float64 values (n,), restarting at each index of group_starts
-    (sorted, starting with 0): one numpy call per group (per object pair in contact)."""
-    out = np.empty_like(values)
-    bounds = np.append(group_starts, values.shape[0])
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        out[lo:hi] = np.maximum.accumulate(values[lo:hi])
-    return out
 
 
 def frame_of_time(times, t):

@@ -28,6 +28,7 @@ from .contacts import (
     columns_from_rows,
     intervals_from_hits,
     intervals_from_steps,
+    merge_steps,
     sort_columns,
 )
 from .discrete import scan_frames, smallest_touching_pairs
@@ -727,7 +728,7 @@ def _compile_note(continuous):
     """Announce on stderr when numba really compiles (a machine's first run: about a
     minute), never on warm runs (collide.jit_events); "n of m" counts the top-level
     kernels that _compile_kernels prepares."""
-    return compile_notice([scan_frames, smallest_touching_pairs, contact_points]
+    return compile_notice([scan_frames, smallest_touching_pairs, contact_points, merge_steps]
                           + ([scan_intervals] if continuous else []))
 
 
@@ -796,7 +797,7 @@ def _prepare(meshes, trajectory, mode, split, leaf_size, frames, time_tol, inter
         check_motion(scene, ps, poses, index, interpolation, warn_angle)
     no_poses = np.zeros((1, poses.n_objects, 3, 4))  # a block's type, to compile or load the kernels with
     if compiling is not None:
-        compile_contact_points(ps, no_poses)  # here, while the workers compile the big kernels
+        compile_result_kernels(ps, no_poses)  # here, while the workers compile the big kernels
     _finish_warm_up(compiling)
     with _compile_note(continuous):
         _compile_kernels(ps, no_poses, scene.static, filters, continuous, interpolation, time_tol, dist_tol)
@@ -825,12 +826,15 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
                        INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES, config.PROBED_FACES,
                        config.PROBE_LEAF_PAIRS)
     smallest_touching_pairs(ps, poses, static, np.zeros(0, np.int64), np.zeros((0, 2), np.int64), 0, 0)
-    compile_contact_points(ps, poses)
+    compile_result_kernels(ps, poses)
 
 
-def compile_contact_points(ps, poses):
-    """Compile (or load) the contact points' kernel (warm-up unit "setup" with the BVH
-    builder and the motion checks, which run before this) on no contacts."""
+def compile_result_kernels(ps, poses):
+    """Compile (or load) the kernels that turn a scan's rows into contacts, the merge of
+    continuous contacts and the contact points (warm-up unit "setup" with the BVH builder
+    and the motion checks, which run before this), on no contacts."""
+    merge_steps(np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), np.zeros((0, HIT_WIDTH), np.int64),
+                np.zeros(1))
     none = np.zeros(0, np.int64)
     ids = np.zeros(0, CONTACT_COLUMNS["object_a"])
     contact_points(ps, np.ascontiguousarray(poses, dtype=np.float64), none, none, none, np.zeros(0), ids, ids, ids, ids,

@@ -240,8 +240,8 @@ def _motion(ps, poses, static, pairs):
 
 
 def _contact_point(ps, poses, static, pairs):
-    from .pipeline import compile_contact_points
-    compile_contact_points(ps, poses)
+    from .pipeline import compile_result_kernels
+    compile_result_kernels(ps, poses)
 
 
 _KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_touching_pairs,

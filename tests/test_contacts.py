@@ -1,9 +1,13 @@
 """collide.contacts: merging frame hits and swept contacts into intervals."""
+import math
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from collide.contacts import merge_order
+from collide.contacts import KIND_FRAME, KIND_SWEPT, _merge_order, frame_of_time, intervals_from_steps
+from collide.rows import (HIT_A, HIT_B, HIT_FRAME, HIT_SMALLEST, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, SWEPT_A, SWEPT_B,
+                          SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_BEGIN, T_END)
 
 #: rows (a, b, t0 index, is_frame, tri_a, tri_b) drawn from small ranges, so that ties of every
 #: size, on every key, are common
@@ -14,11 +18,79 @@ ROWS = st.lists(st.tuples(st.integers(0, 3), st.integers(0, 3), st.integers(0, 3
 @given(rows=ROWS, times=st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=4, max_size=4))
 @settings(max_examples=300, deadline=None)
 def test_merge_order_is_the_six_key_lexsort(rows, times):
-    """merge_order against np.lexsort of (a, b, t0, frame hits first, tri_a, tri_b), which is
-    stable: equal rows keep their input order."""
+    """The merge kernel's order against np.lexsort of (a, b, t0, frame hits first, tri_a,
+    tri_b), which is stable: equal rows keep their input order."""
     table = np.array(rows, dtype=np.int64).reshape(-1, 6)
     a, b, tri_a, tri_b = table[:, 0], table[:, 1], table[:, 4], table[:, 5]
     t0 = np.array(times)[table[:, 2]]
     is_frame = table[:, 3].astype(bool)
     expected = np.lexsort((tri_b, tri_a, ~is_frame, t0, b, a))
-    np.testing.assert_array_equal(merge_order(a, b, t0, is_frame, tri_a, tri_b), expected)
+    np.testing.assert_array_equal(_merge_order(a, b, t0, is_frame, tri_a, tri_b), expected)
+
+
+#: fractions of a step, the ends and a few in between, so that items often begin where others end
+FRACTIONS = st.sampled_from([0.0, 0.25, 0.5, 0.7, 1.0]) | st.floats(0.0, 1.0)
+#: swept rows (step, pair, tri_a, tri_b, u, u') and frame hits (frame, pair, tri_a, tri_b, smallest)
+SWEPT = st.lists(st.tuples(st.integers(0, 3), st.integers(0, 2), st.integers(-1, 2), st.integers(-1, 2), FRACTIONS,
+                           FRACTIONS), max_size=40)
+HITS = st.lists(st.tuples(st.integers(0, 4), st.integers(0, 2), st.integers(-1, 2), st.integers(-1, 2),
+                          st.booleans()), max_size=40)
+PAIRS = [(0, 1), (0, 2), (1, 2)]
+
+
+def reference_intervals(swept, hits, times):
+    """The merge rule in plain Python: per object pair, items sorted by (begin, frame hits
+    first, tri_a, tri_b, input order); an item begins a new interval when it begins after
+    every earlier item of its pair has ended."""
+    def at(step, u, direction):
+        after = times[min(step + 1, len(times) - 1)]
+        if u <= 0.0:
+            return times[step]
+        if u >= 1.0:
+            return after
+        return math.nextafter(times[step] + u * (after - times[step]), direction)
+    items = []  # (a, b, t0, t1, is_frame, tri_a, tri_b, step, u, first_found)
+    for step, pair, tri_a, tri_b, u, v in swept:
+        lo, hi = min(u, v), max(u, v)
+        items.append((*PAIRS[pair], at(step, lo, -math.inf), at(step, hi, math.inf), False, tri_a, tri_b, step, lo,
+                      False))
+    for frame, pair, tri_a, tri_b, smallest in hits:
+        items.append((*PAIRS[pair], times[frame], times[frame], True, tri_a, tri_b, frame, 0.0, not smallest))
+    order = sorted(range(len(items)), key=lambda i: (items[i][0], items[i][1], items[i][2], not items[i][4],
+                                                     items[i][5], items[i][6], i))
+    out, reach = [], None
+    for i in order:
+        a, b, t0, t1, is_frame, tri_a, tri_b, step, u, found = items[i]
+        if out and out[-1][:2] == [a, b] and t0 <= reach:
+            out[-1][3] = max(out[-1][3], t1)
+            out[-1][4] = out[-1][4] or is_frame
+            reach = max(reach, t1)
+        else:
+            out.append([a, b, t0, t1, is_frame, tri_a, tri_b, step, u, found])
+            reach = t1
+    return out
+
+
+@given(swept=SWEPT, hits=HITS, gaps=st.lists(st.floats(0.01, 10.0), min_size=4, max_size=4))
+@settings(max_examples=300, deadline=None)
+def test_intervals_from_steps_against_the_merge_rule_in_plain_python(swept, hits, gaps):
+    times = np.concatenate([[0.0], np.cumsum(gaps)])
+    ids = np.array([(step, *PAIRS[pair], tri_a, tri_b) for step, pair, tri_a, tri_b, _, _ in swept],
+                   np.int64).reshape(-1, SWEPT_WIDTH)[:, np.argsort([SWEPT_STEP, SWEPT_A, SWEPT_B, SWEPT_TRI_A,
+                                                                      SWEPT_TRI_B])]
+    fractions = np.array([(min(u, v), max(u, v)) for *_, u, v in swept]).reshape(-1, 2)[:, [T_BEGIN, T_END]]
+    hit_rows = np.zeros((len(hits), HIT_WIDTH), np.int64)
+    for row, (frame, pair, tri_a, tri_b, smallest) in zip(hit_rows, hits):
+        row[[HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_SMALLEST]] = frame, *PAIRS[pair], tri_a, tri_b, smallest
+    columns, where = intervals_from_steps(ids, fractions, hit_rows, times)
+    expected = reference_intervals(swept, hits, times)
+    got = list(zip(columns["object_a"], columns["object_b"], columns["t_begin"], columns["t_end"],
+                   columns["kind"] == KIND_FRAME, columns["tri_a"], columns["tri_b"], where.step, where.u,
+                   where.first_found))
+    assert [[int(v) if i in (0, 1, 5, 6, 7) else v for i, v in enumerate(row)] for row in got] == \
+        [[a, b, t0, t1, seen, tri_a, tri_b, step, u, found] for a, b, t0, t1, seen, tri_a, tri_b, step, u, found
+         in expected]
+    assert set(columns["kind"]) <= {KIND_FRAME, KIND_SWEPT}
+    np.testing.assert_array_equal(columns["frame_begin"], frame_of_time(times, columns["t_begin"]))
+    np.testing.assert_array_equal(columns["frame_end"], frame_of_time(times, columns["t_end"]))
+    assert np.isnan(columns["point_x"]).all() and columns["point_x"].shape == columns["t_begin"].shape

@@ -703,25 +703,40 @@ def _fill_contact_points(contacts, where, ps, poses, interpolation, workers=1):
     poses: PoseSource, read for a block's worth of frames at a time.
     """
     steps, fractions, _ = where
+    if not steps.size:
+        return
     point = np.zeros((steps.size, 3))
-    order = np.argsort(steps, kind="stable")
-    sorted_steps = steps[order]
-    unique_steps = np.unique(steps)
-    per_group = max(1, poses.block // 2)  # a group's steps and the frames after them fill a block
-    for group in range(0, unique_steps.size, per_group):
-        group_steps = unique_steps[group:group + per_group]
-        frames = np.union1d(group_steps, np.minimum(group_steps + 1, poses.n_frames - 1))
+    fractions = np.ascontiguousarray(fractions, dtype=np.float64)
+    next_frames = np.minimum(steps + 1, poses.n_frames - 1)
+    frames = np.unique(np.concatenate([steps, next_frames]))
+    if frames.size <= poses.block:  # the usual case: one block holds every frame needed (few numpy calls)
+        groups = [(np.arange(steps.size), frames)]
+    else:
+        groups = _contact_groups(steps, next_frames, poses.block)
+    for rows, frames in groups:
         block, block_rows = poses.at(frames)
-        first = np.searchsorted(sorted_steps, group_steps[0], side="left")
-        last = np.searchsorted(sorted_steps, group_steps[-1], side="right")
-        rows = np.ascontiguousarray(order[first:last], dtype=np.int64)
         row0 = block_rows[np.searchsorted(frames, steps[rows])]
-        row1 = block_rows[np.searchsorted(frames, np.minimum(steps[rows] + 1, poses.n_frames - 1))]
-        _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0.astype(np.int64),
-                                     row1.astype(np.int64), np.ascontiguousarray(fractions, dtype=np.float64),
+        row1 = block_rows[np.searchsorted(frames, next_frames[rows])]
+        _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0, row1, fractions,
                                      contacts["object_a"], contacts["object_b"], contacts["tri_a"], contacts["tri_b"],
                                      point), (interpolation == "screw",), rows.size, workers, None)
     contacts["point_x"][:], contacts["point_y"][:], contacts["point_z"][:] = point.T
+
+
+def _contact_groups(steps, next_frames, block):
+    """Yield (rows int64, frames int64 sorted): the contacts (rows of steps, next_frames:
+    int64 (C,)) in groups whose frames (their steps and the frames after them) fit in a
+    block of ``block`` frames, by step."""
+    order = np.argsort(steps, kind="stable")
+    sorted_steps = steps[order]
+    unique_steps = np.unique(steps)
+    per_group = max(1, block // 2)  # a group's steps and the frames after them fill a block
+    for group in range(0, unique_steps.size, per_group):
+        group_steps = unique_steps[group:group + per_group]
+        first = np.searchsorted(sorted_steps, group_steps[0], side="left")
+        last = np.searchsorted(sorted_steps, group_steps[-1], side="right")
+        rows = order[first:last]
+        yield rows, np.unique(np.concatenate([group_steps, next_frames[rows]]))
 
 
 def _compile_note(continuous):

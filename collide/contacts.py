@@ -140,11 +140,25 @@ def intervals_from_steps(ids, fractions, hits, times):
 def merge_steps(ids, fractions, hits, times):
     """intervals_from_steps' merge in one kernel (a short scan's post-processing was
     mostly the fixed cost of some fifty numpy calls): the items (swept rows, then frame
-    hits) ordered by _merge_order's six keys, then each object pair's run cut where an
-    item begins after every earlier one has ended. Returns, per interval (E,): object_a,
-    object_b int64, t_begin, t_end float64, frame_begin, frame_end int64, kind uint8,
-    tri_a, tri_b, step int64, u float64 (fraction of the step of the first item),
-    first_found bool."""
+    hits) in the order of _merge_order, each object pair's run cut where an item begins
+    after every earlier one has ended. Returns, per interval (E,): object_a, object_b
+    int64, t_begin, t_end float64, frame_begin, frame_end int64, kind uint8, tri_a, tri_b,
+    step int64, u float64 (fraction of the step of the first item), first_found bool."""
+    a, b, t0, t1, is_frame, tri_a, tri_b, step, u, first_found = _merge_items(ids, fractions, hits, times)
+    order = _merge_order(a, b, t0, is_frame, tri_a, tri_b)
+    starts = _interval_starts(order, a, b, t0, t1)
+    first = order[starts]  # each interval's first item
+    t_end, kind = _interval_ends(order, starts, t1, is_frame)
+    t_begin = t0[first]
+    return (a[first], b[first], t_begin, t_end, _frames_of_times(times, t_begin), _frames_of_times(times, t_end),
+            kind, tri_a[first], tri_b[first], step[first], u[first], first_found[first])
+
+
+@njit(cache=True)
+def _merge_items(ids, fractions, hits, times):
+    """The items to merge, swept rows then frame hits, as arrays (n,): a, b, t0, t1 (their
+    begin and end times, float64), is_frame, tri_a, tri_b, step (frame for a hit), u
+    (fraction of the step at t0), first_found (a hit's pair may be the first found)."""
     n_swept = ids.shape[0]
     n = n_swept + hits.shape[0]
     a = np.empty(n, np.int64)
@@ -173,11 +187,16 @@ def merge_steps(ids, fractions, hits, times):
         t0[r] = t1[r] = times[step[r]]
         is_frame[r] = True
         first_found[r] = hits[h, HIT_SMALLEST] == 0
-    order = _merge_order(a, b, t0, is_frame, tri_a, tri_b)
-    # cut each pair's run where an item begins after every earlier one has ended
-    starts = np.zeros(n, np.bool_)
-    reach = -np.inf
-    n_out = 0
+    return a, b, t0, t1, is_frame, tri_a, tri_b, step, u, first_found
+
+
+@njit(cache=True)
+def _interval_starts(order, a, b, t0, t1):
+    """bool (n,): item order[k] begins an interval, being the first of its object pair or
+    beginning after every earlier item of the pair has ended."""
+    n = order.shape[0]
+    starts = np.empty(n, np.bool_)
+    reach = -np.inf  # the latest end so far within the pair
     for k in range(n):
         r = order[k]
         if k == 0 or a[r] != a[order[k - 1]] or b[r] != b[order[k - 1]]:
@@ -186,34 +205,27 @@ def merge_steps(ids, fractions, hits, times):
         else:
             starts[k] = t0[r] > reach
             reach = max(reach, t1[r])
-        n_out += starts[k]
-    out_a = np.empty(n_out, np.int64)
-    out_b = np.empty(n_out, np.int64)
-    t_begin = np.empty(n_out)
-    t_end = np.empty(n_out)
-    kind = np.empty(n_out, np.uint8)
-    out_tri_a = np.empty(n_out, np.int64)
-    out_tri_b = np.empty(n_out, np.int64)
-    out_step = np.empty(n_out, np.int64)
-    out_u = np.empty(n_out)
-    out_found = np.empty(n_out, np.bool_)
+    return starts
+
+
+@njit(cache=True)
+def _interval_ends(order, starts, t1, is_frame):
+    """Each interval's end (the latest t1 of its items) and kind (KIND_FRAME when one of
+    them is a frame hit, else KIND_SWEPT): float64 (E,), uint8 (E,)."""
+    t_end = np.empty(np.count_nonzero(starts))
+    kind = np.empty(t_end.shape[0], np.uint8)
     e = -1
-    for k in range(n):
+    for k in range(order.shape[0]):
         r = order[k]
         if starts[k]:
             e += 1
-            out_a[e], out_b[e], t_begin[e], t_end[e] = a[r], b[r], t0[r], t1[r]
+            t_end[e] = t1[r]
             kind[e] = KIND_FRAME if is_frame[r] else KIND_SWEPT
-            out_tri_a[e], out_tri_b[e], out_step[e], out_u[e], out_found[e] = tri_a[r], tri_b[r], step[r], u[r], \
-                first_found[r]
         else:
             t_end[e] = max(t_end[e], t1[r])
             if is_frame[r]:
                 kind[e] = KIND_FRAME
-    frame_begin = _frames_of_times(times, t_begin)
-    frame_end = _frames_of_times(times, t_end)
-    return (out_a, out_b, t_begin, t_end, frame_begin, frame_end, kind, out_tri_a, out_tri_b, out_step, out_u,
-            out_found)
+    return t_end, kind
 
 
 @njit(cache=True)

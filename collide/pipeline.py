@@ -713,10 +713,10 @@ def _fill_contact_points(contacts, where, ps, poses, interpolation, workers=1):
         groups = [(np.arange(steps.size), frames)]
     else:
         groups = _contact_groups(steps, next_frames, poses.block)
-    for rows, frames in groups:
-        block, block_rows = poses.at(frames)
-        row0 = block_rows[np.searchsorted(frames, steps[rows])]
-        row1 = block_rows[np.searchsorted(frames, next_frames[rows])]
+    for rows, group_frames in groups:
+        block, block_rows = poses.at(group_frames)
+        row0 = block_rows[np.searchsorted(group_frames, steps[rows])]
+        row1 = block_rows[np.searchsorted(group_frames, next_frames[rows])]
         _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0, row1, fractions,
                                      contacts["object_a"], contacts["object_b"], contacts["tri_a"], contacts["tri_b"],
                                      point), (interpolation == "screw",), rows.size, workers, None)

@@ -6,8 +6,23 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from collide.contacts import KIND_FRAME, KIND_SWEPT, _merge_order, frame_of_time, intervals_from_steps
-from collide.rows import (HIT_A, HIT_B, HIT_FRAME, HIT_SMALLEST, HIT_TRI_A, HIT_TRI_B, HIT_WIDTH, SWEPT_A, SWEPT_B,
-                          SWEPT_STEP, SWEPT_TRI_A, SWEPT_TRI_B, SWEPT_WIDTH, T_BEGIN, T_END)
+from collide.rows import (
+    HIT_A,
+    HIT_B,
+    HIT_FRAME,
+    HIT_SMALLEST,
+    HIT_TRI_A,
+    HIT_TRI_B,
+    HIT_WIDTH,
+    SWEPT_A,
+    SWEPT_B,
+    SWEPT_STEP,
+    SWEPT_TRI_A,
+    SWEPT_TRI_B,
+    SWEPT_WIDTH,
+    T_BEGIN,
+    T_END,
+)
 
 #: rows (a, b, t0 index, is_frame, tri_a, tri_b) drawn from small ranges, so that ties of every
 #: size, on every key, are common

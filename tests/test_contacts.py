@@ -5,24 +5,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from collide import rows
 from collide.contacts import KIND_FRAME, KIND_SWEPT, _merge_order, frame_of_time, intervals_from_steps
-from collide.rows import (
-    HIT_A,
-    HIT_B,
-    HIT_FRAME,
-    HIT_SMALLEST,
-    HIT_TRI_A,
-    HIT_TRI_B,
-    HIT_WIDTH,
-    SWEPT_A,
-    SWEPT_B,
-    SWEPT_STEP,
-    SWEPT_TRI_A,
-    SWEPT_TRI_B,
-    SWEPT_WIDTH,
-    T_BEGIN,
-    T_END,
-)
 
 #: rows (a, b, t0 index, is_frame, tri_a, tri_b) drawn from small ranges, so that ties of every
 #: size, on every key, are common
@@ -51,6 +35,9 @@ SWEPT = st.lists(st.tuples(st.integers(0, 3), st.integers(0, 2), st.integers(-1,
 HITS = st.lists(st.tuples(st.integers(0, 4), st.integers(0, 2), st.integers(-1, 2), st.integers(-1, 2),
                           st.booleans()), max_size=40)
 PAIRS = [(0, 1), (0, 2), (1, 2)]
+#: where the drawn values go in the kernels' rows
+SWEPT_COLUMNS = [rows.SWEPT_STEP, rows.SWEPT_A, rows.SWEPT_B, rows.SWEPT_TRI_A, rows.SWEPT_TRI_B]
+HIT_COLUMNS = [rows.HIT_FRAME, rows.HIT_A, rows.HIT_B, rows.HIT_TRI_A, rows.HIT_TRI_B, rows.HIT_SMALLEST]
 
 
 def reference_intervals(swept, hits, times):
@@ -90,13 +77,14 @@ def reference_intervals(swept, hits, times):
 @settings(max_examples=300, deadline=None)
 def test_intervals_from_steps_against_the_merge_rule_in_plain_python(swept, hits, gaps):
     times = np.concatenate([[0.0], np.cumsum(gaps)])
-    ids = np.array([(step, *PAIRS[pair], tri_a, tri_b) for step, pair, tri_a, tri_b, _, _ in swept],
-                   np.int64).reshape(-1, SWEPT_WIDTH)[:, np.argsort([SWEPT_STEP, SWEPT_A, SWEPT_B, SWEPT_TRI_A,
-                                                                      SWEPT_TRI_B])]
-    fractions = np.array([(min(u, v), max(u, v)) for *_, u, v in swept]).reshape(-1, 2)[:, [T_BEGIN, T_END]]
-    hit_rows = np.zeros((len(hits), HIT_WIDTH), np.int64)
-    for row, (frame, pair, tri_a, tri_b, smallest) in zip(hit_rows, hits):
-        row[[HIT_FRAME, HIT_A, HIT_B, HIT_TRI_A, HIT_TRI_B, HIT_SMALLEST]] = frame, *PAIRS[pair], tri_a, tri_b, smallest
+    ids = np.zeros((len(swept), rows.SWEPT_WIDTH), np.int64)
+    fractions = np.zeros((len(swept), rows.TIMES_WIDTH))
+    for k, (step, pair, tri_a, tri_b, u, v) in enumerate(swept):
+        ids[k, SWEPT_COLUMNS] = step, *PAIRS[pair], tri_a, tri_b
+        fractions[k, [rows.T_BEGIN, rows.T_END]] = min(u, v), max(u, v)
+    hit_rows = np.zeros((len(hits), rows.HIT_WIDTH), np.int64)
+    for k, (frame, pair, tri_a, tri_b, smallest) in enumerate(hits):
+        hit_rows[k, HIT_COLUMNS] = frame, *PAIRS[pair], tri_a, tri_b, smallest
     columns, where = intervals_from_steps(ids, fractions, hit_rows, times)
     expected = reference_intervals(swept, hits, times)
     got = list(zip(columns["object_a"], columns["object_b"], columns["t_begin"], columns["t_end"],

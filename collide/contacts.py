@@ -68,25 +68,6 @@ class Where(NamedTuple):
     first_found: np.ndarray  #: bool (E,) (tri_a, tri_b) is a frame hit's pair, maybe not the smallest
 
 
-def _contact_columns(a, b, t_begin, t_end, kind, tri_a, tri_b, times):
-    """Contact columns (CONTACT_COLUMNS; points NaN for the caller to fill) of intervals
-    given as arrays, already sorted by (a, b, t_begin)."""
-    n = a.shape[0]
-    frame_begin, frame_end = frame_of_time(times, np.stack([t_begin, t_end]))
-    values = {"object_a": a, "object_b": b, "t_begin": t_begin, "t_end": t_end,
-              "frame_begin": frame_begin, "frame_end": frame_end,
-              "kind": kind, "tri_a": tri_a, "tri_b": tri_b,
-              "point_x": np.full(n, np.nan), "point_y": np.full(n, np.nan), "point_z": np.full(n, np.nan)}
-    return {name: np.asarray(values[name]).astype(dtype, copy=False) for name, dtype in CONTACT_COLUMNS.items()}
-
-
-def _new_pair(a, b):
-    """bool (n,): row k starts another object pair than row k - 1 (rows sorted by pair)."""
-    starts = np.ones(a.shape[0], bool)
-    starts[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    return starts
-
-
 def intervals_from_hits(hits, times):
     """Discrete contact intervals from frame hits.
 
@@ -97,16 +78,7 @@ def intervals_from_hits(hits, times):
     the caller to fill), and a Where: the contact's first frame (u = 0), whether its
     (tri_a, tri_b) may be the first found rather than the smallest (HIT_SMALLEST).
     """
-    hits = np.asarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
-    hits = hits[np.lexsort((hits[:, HIT_FRAME], _pair_key(hits[:, HIT_A], hits[:, HIT_B])))]
-    a, b, frame = hits[:, HIT_A], hits[:, HIT_B], hits[:, HIT_FRAME]
-    starts = _new_pair(a, b)
-    starts[1:] |= frame[1:] != frame[:-1] + 1
-    first = np.flatnonzero(starts)
-    last = np.append(first[1:] - 1, hits.shape[0] - 1) if first.size else first
-    columns = _contact_columns(a[first], b[first], times[frame[first]], times[frame[last]],
-                               np.full(first.size, KIND_FRAME), hits[first, HIT_TRI_A], hits[first, HIT_TRI_B], times)
-    return columns, Where(frame[first], np.zeros(first.size), hits[first, HIT_SMALLEST] == 0)
+    return _merged(np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), hits, times, True)
 
 
 def intervals_from_steps(ids, fractions, hits, times):
@@ -123,12 +95,17 @@ def intervals_from_steps(ids, fractions, hits, times):
     interval's first item (frame hits before swept items at the same time, then the
     smallest pair). Returns (columns, where) as intervals_from_hits.
     """
+    return _merged(ids, fractions, hits, times, False)
+
+
+def _merged(ids, fractions, hits, times, frame_runs):
+    """(columns, where) of merge_contacts' intervals; points NaN, for the caller to fill."""
     ids = np.ascontiguousarray(ids, dtype=np.int64).reshape(-1, SWEPT_WIDTH)
     fractions = np.ascontiguousarray(fractions, dtype=np.float64).reshape(-1, TIMES_WIDTH)
     hits = np.ascontiguousarray(hits, dtype=np.int64).reshape(-1, HIT_WIDTH)
     times = np.ascontiguousarray(times, dtype=np.float64)
-    a, b, t_begin, t_end, frame_begin, frame_end, kind, tri_a, tri_b, step, u, first_found = merge_steps(
-        ids, fractions, hits, times)
+    a, b, t_begin, t_end, frame_begin, frame_end, kind, tri_a, tri_b, step, u, first_found = merge_contacts(
+        ids, fractions, hits, times, frame_runs)
     values = {"object_a": a, "object_b": b, "t_begin": t_begin, "t_end": t_end, "frame_begin": frame_begin,
               "frame_end": frame_end, "kind": kind, "tri_a": tri_a, "tri_b": tri_b}
     columns = {name: values[name].astype(dtype, copy=False) if name in values else np.full(a.shape[0], np.nan)
@@ -137,16 +114,18 @@ def intervals_from_steps(ids, fractions, hits, times):
 
 
 @njit_entry
-def merge_steps(ids, fractions, hits, times):
-    """intervals_from_steps' merge in one kernel (a short scan's post-processing was
-    mostly the fixed cost of some fifty numpy calls): the items (swept rows, then frame
-    hits) in the order of _merge_order, each object pair's run cut where an item begins
-    after every earlier one has ended. Returns, per interval (E,): object_a, object_b
-    int64, t_begin, t_end float64, frame_begin, frame_end int64, kind uint8, tri_a, tri_b,
-    step int64, u float64 (fraction of the step of the first item), first_found bool."""
+def merge_contacts(ids, fractions, hits, times, frame_runs):
+    """intervals_from_steps' (frame_runs False) and intervals_from_hits' (frame_runs True,
+    no swept rows) merge in one kernel (a short scan's post-processing was mostly the
+    fixed cost of some fifty numpy calls): the items (swept rows, then frame hits) in the
+    order of _merge_order, each object pair's run cut where an item begins after every
+    earlier one has ended (frame_runs: where a frame is not the one after the last).
+    Returns, per interval (E,): object_a, object_b int64, t_begin, t_end float64,
+    frame_begin, frame_end int64, kind uint8, tri_a, tri_b, step int64, u float64
+    (fraction of the step of the first item), first_found bool."""
     a, b, t0, t1, is_frame, tri_a, tri_b, step, u, first_found = _merge_items(ids, fractions, hits, times)
     order = _merge_order(a, b, t0, is_frame, tri_a, tri_b)
-    starts = _interval_starts(order, a, b, t0, t1)
+    starts = _interval_starts(order, a, b, t0, t1, step, frame_runs)
     first = order[starts]  # each interval's first item
     t_end, kind = _interval_ends(order, starts, t1, is_frame)
     t_begin = t0[first]
@@ -191,9 +170,10 @@ def _merge_items(ids, fractions, hits, times):
 
 
 @njit(cache=True)
-def _interval_starts(order, a, b, t0, t1):
+def _interval_starts(order, a, b, t0, t1, step, frame_runs):
     """bool (n,): item order[k] begins an interval, being the first of its object pair or
-    beginning after every earlier item of the pair has ended."""
+    beginning after every earlier item of the pair has ended (frame_runs: at a frame that
+    is not the one after the last item's)."""
     n = order.shape[0]
     starts = np.empty(n, np.bool_)
     reach = -np.inf  # the latest end so far within the pair
@@ -201,10 +181,11 @@ def _interval_starts(order, a, b, t0, t1):
         r = order[k]
         if k == 0 or a[r] != a[order[k - 1]] or b[r] != b[order[k - 1]]:
             starts[k] = True
-            reach = t1[r]
+        elif frame_runs:
+            starts[k] = step[r] != step[order[k - 1]] + 1
         else:
             starts[k] = t0[r] > reach
-            reach = max(reach, t1[r])
+        reach = t1[r] if starts[k] else max(reach, t1[r])
     return starts
 
 
@@ -243,7 +224,8 @@ def _step_time(times, step, u, direction):
 
 @njit(cache=True)
 def _frames_of_times(times, t):
-    """frame_of_time for float64 t (E,): int64 (E,), by bisection (times sorted)."""
+    """int64 (E,): for each float64 t[e], the k with times[k] <= t[e] < times[k + 1] (times
+    sorted), the first frame before times[0], the last from times[-1] on; by bisection."""
     out = np.empty(t.shape[0], np.int64)
     for e in range(t.shape[0]):
         lo, hi = 0, times.shape[0]  # the first index whose time is after t[e] lies in [lo, hi]
@@ -297,16 +279,3 @@ def _comes_before(i, j, a, b, t0, is_frame, tri_a, tri_b):
     if tri_a[i] != tri_a[j]:
         return tri_a[i] < tri_a[j]
     return tri_b[i] < tri_b[j]
-
-
-def _pair_key(a, b):
-    """int64 keys ordered as the object pairs (a, b) (ids in [0, 2**31)): a * n + b, n one
-    more than the largest id. Sorting on one key instead of two is about 4x faster."""
-    n = max(int(a.max()), int(b.max())) + 1 if a.size else 1
-    return a.astype(np.int64) * n + b
-
-
-def frame_of_time(times, t):
-    """k such that times[k] <= t < times[k+1]; the last frame for t >= times[-1]."""
-    k = np.searchsorted(times, t, side="right") - 1
-    return np.minimum(np.maximum(k, 0), times.shape[0] - 1).astype(np.int64)  # np.clip: 4x the time on small arrays

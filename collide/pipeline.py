@@ -28,7 +28,7 @@ from .contacts import (
     columns_from_rows,
     intervals_from_hits,
     intervals_from_steps,
-    merge_steps,
+    merge_contacts,
     sort_columns,
 )
 from .discrete import scan_frames, smallest_touching_pairs
@@ -743,7 +743,7 @@ def _compile_note(continuous):
     """Announce on stderr when numba really compiles (a machine's first run: about a
     minute), never on warm runs (collide.jit_events); "n of m" counts the top-level
     kernels that _compile_kernels prepares."""
-    return compile_notice([scan_frames, smallest_touching_pairs, contact_points, merge_steps]
+    return compile_notice([scan_frames, smallest_touching_pairs, contact_points, merge_contacts]
                           + ([scan_intervals] if continuous else []))
 
 
@@ -845,11 +845,11 @@ def _compile_kernels(ps, poses, static, filters, continuous, interpolation, time
 
 
 def compile_result_kernels(ps, poses):
-    """Compile (or load) the kernels that turn a scan's rows into contacts, the merge of
-    continuous contacts and the contact points (warm-up unit "setup" with the BVH builder
+    """Compile (or load) the kernels that turn a scan's rows into contacts, the merge into
+    intervals and the contact points (warm-up unit "setup" with the BVH builder
     and the motion checks, which run before this), on no contacts."""
-    merge_steps(np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), np.zeros((0, HIT_WIDTH), np.int64),
-                np.zeros(1))
+    merge_contacts(np.zeros((0, SWEPT_WIDTH), np.int64), np.zeros((0, TIMES_WIDTH)), np.zeros((0, HIT_WIDTH), np.int64),
+                   np.zeros(1), False)
     none = np.zeros(0, np.int64)
     ids = np.zeros(0, CONTACT_COLUMNS["object_a"])
     contact_points(ps, np.ascontiguousarray(poses, dtype=np.float64), none, none, none, np.zeros(0), ids, ids, ids, ids,

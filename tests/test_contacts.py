@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from collide import rows
-from collide.contacts import KIND_FRAME, KIND_SWEPT, _merge_order, frame_of_time, intervals_from_steps
+from collide.contacts import KIND_FRAME, KIND_SWEPT, _merge_order, intervals_from_hits, intervals_from_steps
 
 #: rows (a, b, t0 index, is_frame, tri_a, tri_b) drawn from small ranges, so that ties of every
 #: size, on every key, are common
@@ -38,6 +38,11 @@ PAIRS = [(0, 1), (0, 2), (1, 2)]
 #: where the drawn values go in the kernels' rows
 SWEPT_COLUMNS = [rows.SWEPT_STEP, rows.SWEPT_A, rows.SWEPT_B, rows.SWEPT_TRI_A, rows.SWEPT_TRI_B]
 HIT_COLUMNS = [rows.HIT_FRAME, rows.HIT_A, rows.HIT_B, rows.HIT_TRI_A, rows.HIT_TRI_B, rows.HIT_SMALLEST]
+
+
+def frame_of_time(times, t):
+    """k such that times[k] <= t < times[k + 1], clipped to the frames (numpy)."""
+    return np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
 
 
 def reference_intervals(swept, hits, times):
@@ -97,3 +102,31 @@ def test_intervals_from_steps_against_the_merge_rule_in_plain_python(swept, hits
     np.testing.assert_array_equal(columns["frame_begin"], frame_of_time(times, columns["t_begin"]))
     np.testing.assert_array_equal(columns["frame_end"], frame_of_time(times, columns["t_end"]))
     assert np.isnan(columns["point_x"]).all() and columns["point_x"].shape == columns["t_begin"].shape
+
+
+@given(hits=HITS, gaps=st.lists(st.floats(0.01, 10.0), min_size=4, max_size=4))
+@settings(max_examples=300, deadline=None)
+def test_intervals_from_hits_are_runs_of_consecutive_frames(hits, gaps):
+    """Discrete intervals against plain Python: per object pair, its frames sorted, one
+    interval per run of consecutive frames, with the pair and flag of the run's first hit."""
+    times = np.concatenate([[0.0], np.cumsum(gaps)])
+    hits = list({(frame, pair): (frame, pair, tri_a, tri_b, smallest)  # one hit per pair and frame
+                 for frame, pair, tri_a, tri_b, smallest in hits}.values())
+    hit_rows = np.zeros((len(hits), rows.HIT_WIDTH), np.int64)
+    for k, (frame, pair, tri_a, tri_b, smallest) in enumerate(hits):
+        hit_rows[k, HIT_COLUMNS] = frame, *PAIRS[pair], tri_a, tri_b, smallest
+    expected = []
+    for frame, pair, tri_a, tri_b, smallest in sorted(hits, key=lambda h: (PAIRS[h[1]], h[0])):
+        if expected and expected[-1][:2] == list(PAIRS[pair]) and expected[-1][3] == frame - 1:
+            expected[-1][3] = frame
+        else:
+            expected.append([*PAIRS[pair], frame, frame, tri_a, tri_b, not smallest])
+    columns, where = intervals_from_hits(hit_rows, times)
+    got = [[int(a), int(b), int(f0), int(f1), int(ta), int(tb), bool(found)] for a, b, f0, f1, ta, tb, found in zip(
+        columns["object_a"], columns["object_b"], columns["frame_begin"], columns["frame_end"], columns["tri_a"],
+        columns["tri_b"], where.first_found)]
+    assert got == expected
+    np.testing.assert_array_equal(columns["t_begin"], times[columns["frame_begin"]])
+    np.testing.assert_array_equal(columns["t_end"], times[columns["frame_end"]])
+    np.testing.assert_array_equal(where.step, columns["frame_begin"])
+    assert (where.u == 0.0).all() and (columns["kind"] == KIND_FRAME).all()

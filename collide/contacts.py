@@ -1,7 +1,7 @@
 """Contact tables: column layouts of the output and kernel rows -> contact intervals.
 
-Rows are grouped by sorting (numpy lexsort; a stable sort in the kernel that merges
-continuous contacts), never by scanning per object pair.
+Rows are grouped by sorting (a stable merge sort in the kernel that merges them into
+intervals, merge_contacts; numpy lexsort elsewhere), never by scanning per object pair.
 """
 from typing import NamedTuple
 

@@ -237,6 +237,13 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
         return
     if n_items <= 1:
         workers = 1  # nothing to share out (a scan's one contact): no thread to start
+    if workers == 1 and 0 < n_items <= min(FIRST_CHUNK_ONE_WORKER, max_size or n_items):
+        with signals_held():  # one chunk, in this thread: the call itself (as _InThisThread makes it)
+            result = kernel(*shared, 0, n_items, *extra)
+        if progress is not None:
+            progress(n_items)
+        yield (0, n_items), result
+        return
     ahead = 2 * workers if workers > 1 else 1
     items_done, seconds_done = 0, 0.0
     with ThreadPoolExecutor(max_workers=workers) if workers > 1 else _InThisThread() as pool:
@@ -500,13 +507,13 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
     if not rows.size:
         return
     rows = rows[np.argsort(steps[rows], kind="stable")]  # by frame: a frame's contacts share its placed vertices
-    frames = steps[rows]
-    unique_frames = np.unique(frames)
-    for group in range(0, unique_frames.size, poses.block):
-        group_frames = unique_frames[group:group + poses.block]
-        block, block_rows = poses.at(group_frames)
-        items = rows[np.searchsorted(frames, group_frames[0]):np.searchsorted(frames, group_frames[-1], side="right")]
-        pose_rows = np.ascontiguousarray(block_rows[np.searchsorted(group_frames, steps[items])], dtype=np.int64)
+    every = _all_poses(poses)
+    if every is not None:  # the usual case: one block, in which a frame's row is the frame
+        parts = [(rows, every, steps[rows])]
+    else:
+        parts = _frame_blocks(rows, steps[rows], poses)
+    for items, block, pose_rows in parts:
+        pose_rows = np.ascontiguousarray(pose_rows, dtype=np.int64)
         wanted = np.ascontiguousarray(np.stack([contacts["object_a"][items], contacts["object_b"][items]], axis=-1),
                                       dtype=np.int64)
         smallest = np.concatenate([np.zeros((0, 2), np.int64)] + _run_chunks(
@@ -516,6 +523,25 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
             raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
         contacts["tri_a"][items] = smallest[:, 0]
         contacts["tri_b"][items] = smallest[:, 1]
+
+
+def _all_poses(poses):
+    """The poses of every selected frame, float64 (S, N, 3, 4), when they fit one block of
+    PoseSource ``poses`` (then frame f's poses are row f), else None."""
+    return poses.read(0, poses.n_frames) if poses.n_frames <= poses.block else None
+
+
+def _frame_blocks(rows, frames, poses):
+    """Yield (rows, poses, pose_rows) a block of frames at a time: the items ``rows`` (int64
+    (C,)) at frames ``frames`` (int64 (C,), ascending), the poses of that block's frames
+    (PoseSource.at) and each item's row in them."""
+    unique_frames = np.unique(frames)
+    for group in range(0, unique_frames.size, poses.block):
+        group_frames = unique_frames[group:group + poses.block]
+        block, block_rows = poses.at(group_frames)
+        first = np.searchsorted(frames, group_frames[0])
+        last = np.searchsorted(frames, group_frames[-1], side="right")
+        yield rows[first:last], block, block_rows[np.searchsorted(group_frames, frames[first:last])]
 
 
 def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_tol, workers, progress,
@@ -707,20 +733,33 @@ def _fill_contact_points(contacts, where, ps, poses, interpolation, workers=1):
         return
     point = np.zeros((steps.size, 3))
     fractions = np.ascontiguousarray(fractions, dtype=np.float64)
+    steps = np.ascontiguousarray(steps, dtype=np.int64)
     next_frames = np.minimum(steps + 1, poses.n_frames - 1)
+    every = _all_poses(poses)
+    if every is not None:  # the usual case: one block, in which a frame's row is the frame
+        parts = [(np.arange(steps.size), every, steps, next_frames)]
+    else:
+        parts = _contact_blocks(steps, next_frames, poses)
+    for rows, block, row0, row1 in parts:
+        _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0, row1, fractions,
+                                     contacts["object_a"], contacts["object_b"], contacts["tri_a"], contacts["tri_b"],
+                                     point), (interpolation == "screw",), rows.size, workers, None)
+    contacts["point_x"][:], contacts["point_y"][:], contacts["point_z"][:] = point.T
+
+
+def _contact_blocks(steps, next_frames, poses):
+    """Yield (rows, poses, row0, row1) a block of frames at a time: the contacts ``rows``
+    whose frames (steps, next_frames: int64 (C,)) that block holds (PoseSource.at), and
+    the rows of each one's two frames in it."""
     frames = np.unique(np.concatenate([steps, next_frames]))
-    if frames.size <= poses.block:  # the usual case: one block holds every frame needed (few numpy calls)
+    if frames.size <= poses.block:
         groups = [(np.arange(steps.size), frames)]
     else:
         groups = _contact_groups(steps, next_frames, poses.block)
     for rows, group_frames in groups:
         block, block_rows = poses.at(group_frames)
-        row0 = block_rows[np.searchsorted(group_frames, steps[rows])]
-        row1 = block_rows[np.searchsorted(group_frames, next_frames[rows])]
-        _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0, row1, fractions,
-                                     contacts["object_a"], contacts["object_b"], contacts["tri_a"], contacts["tri_b"],
-                                     point), (interpolation == "screw",), rows.size, workers, None)
-    contacts["point_x"][:], contacts["point_y"][:], contacts["point_z"][:] = point.T
+        yield (rows, block, block_rows[np.searchsorted(group_frames, steps[rows])],
+               block_rows[np.searchsorted(group_frames, next_frames[rows])])
 
 
 def _contact_groups(steps, next_frames, block):

@@ -179,46 +179,65 @@ def remove_stale_temporaries(folder):
 _STOP_SIGNALS = tuple(int(getattr(signal, name)) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
-@contextmanager
-def _signals_deferred():
-    """Hold Ctrl-C (SIGINT), SIGTERM and SIGHUP back while the body runs; yields a list
-    that holds the signal numbers that came (first first).
+class _SignalsDeferred:
+    """Hold Ctrl-C (SIGINT), SIGTERM and SIGHUP back while the body runs; ``with`` gives a
+    list that holds the signal numbers that came (first first).
 
     A KeyboardInterrupt raised inside h5py's cleanup callbacks is printed and
     dropped by Python, so an interrupt during writing could be lost and the file
     renamed into place anyway. Only the main thread can set signal handlers;
     elsewhere nothing is deferred. Ignored signals stay ignored. It runs around every
-    one-worker kernel call, so it uses signal's C module (_signal), which takes and
+    one-worker kernel call, so it is a plain class (a generator-based context manager
+    costs several µs more per use) and uses signal's C module (_signal), which takes and
     returns plain ints: signal's enum conversions cost 30 µs per use, the C calls 2 µs.
     """
-    came = []
-    if threading.current_thread() is not threading.main_thread():
-        yield came
-        return
 
-    def note(signum, frame):
-        came.append(signum)
+    __slots__ = ("came", "previous")
 
-    previous = {}
-    try:
-        for signum in _STOP_SIGNALS:
-            handler = _signal.getsignal(signum)
-            if handler != _signal.SIG_IGN and handler is not None:
-                previous[signum] = _signal.signal(signum, note)
-        yield came
-    finally:
-        for signum, handler in previous.items():
+    def __init__(self):
+        self.came = []
+        self.previous = []
+
+    def note(self, signum, frame):
+        self.came.append(signum)
+
+    def __enter__(self):
+        if threading.get_ident() == _MAIN_THREAD:
+            try:
+                for signum in _STOP_SIGNALS:
+                    handler = _signal.getsignal(signum)
+                    if handler != _signal.SIG_IGN and handler is not None:
+                        self.previous.append((signum, _signal.signal(signum, self.note)))
+            except BaseException:
+                self._restore()
+                raise
+        return self.came
+
+    def __exit__(self, *exc_info):
+        self._restore()
+        return False
+
+    def _restore(self):
+        for signum, handler in self.previous:
             _signal.signal(signum, handler)
+        self.previous.clear()
 
 
-@contextmanager
-def signals_held():
-    """Hold stop signals back during a short write (see _signals_deferred), then deliver
-    the first that came."""
-    with _signals_deferred() as came:
-        yield
-    if came:
-        _redeliver(came[0])
+_signals_deferred = _SignalsDeferred
+_MAIN_THREAD = threading.main_thread().ident
+
+
+class signals_held(_SignalsDeferred):
+    """Hold stop signals back during a short write or kernel call (see _SignalsDeferred),
+    then, unless the body raised, deliver the first that came."""
+
+    __slots__ = ()
+
+    def __exit__(self, *exc_info):
+        self._restore()
+        if self.came and exc_info[0] is None:
+            _redeliver(self.came[0])
+        return False
 
 
 def _redeliver(signum):

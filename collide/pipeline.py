@@ -383,7 +383,7 @@ def _run_discrete(ps, poses, n_frames, offset, static, filters, pair_sink, worke
             pair_sink.add(chunk_pairs, np.arange(start, stop) + offset, static_pairs)
     if static_hits is not None:
         hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
-    hits = np.concatenate(hits).reshape(-1, HIT_WIDTH)
+    hits = _joined(hits, HIT_WIDTH)
     hits[:, HIT_FRAME] += offset
     return hits, _total_counts(counts)
 
@@ -418,7 +418,7 @@ def _scan_blocks(ps, poses, static, filters, pair_sink, continuous, interpolatio
             block_hits, block_ids, block_fractions, block_counts = _run_steps(
                 ps, block, own, static, filters, interpolation, time_tol, dist_tol, workers, progress.steps,
                 scheduler)
-            hits.append(block_hits + _frame_shift(offset))
+            hits.append(block_hits + _frame_shift(offset) if offset else block_hits)
             counts.append(block_counts)
         else:
             block_hits, block_counts = _run_discrete(ps, block, own, offset, static, filters, pair_sink, workers,
@@ -436,11 +436,12 @@ def _scan_blocks(ps, poses, static, filters, pair_sink, continuous, interpolatio
                 ps, block, static, filters, known - _frame_shift(offset), interpolation, time_tol, dist_tol,
                 workers, progress.steps, scheduler)
             counts.append(block_counts)
-        block_ids[:, SWEPT_STEP] += offset
+        if offset:
+            block_ids[:, SWEPT_STEP] += offset
         ids.append(block_ids)
         fractions.append(block_fractions)
-    return (np.concatenate(hits), np.concatenate(ids or [np.zeros((0, SWEPT_WIDTH), np.int64)]),
-            np.concatenate(fractions or [np.zeros((0, TIMES_WIDTH))]), _total_counts(counts))
+    return (_joined(hits, HIT_WIDTH), _joined(ids or [np.zeros((0, SWEPT_WIDTH), np.int64)], SWEPT_WIDTH),
+            _joined(fractions or [np.zeros((0, TIMES_WIDTH))], TIMES_WIDTH), _total_counts(counts))
 
 
 def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, dist_tol, workers, progress,
@@ -458,8 +459,8 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
     hits = [r[0] for r in results]
     if static_hits is not None:
         hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
-    return (np.concatenate(hits).reshape(-1, HIT_WIDTH), np.concatenate([r[1] for r in results]).reshape(
-        -1, SWEPT_WIDTH), np.concatenate([r[2] for r in results]).reshape(-1, TIMES_WIDTH),
+    return (_joined(hits, HIT_WIDTH), _joined([r[1] for r in results], SWEPT_WIDTH),
+            _joined([r[2] for r in results], TIMES_WIDTH),
         _total_counts(counts + [r[3] for r in results]))
 
 
@@ -472,6 +473,8 @@ def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, 
     hits, ids, fractions, counts = scan_intervals(ps, poses, static, pairs, _NO_KEYS, _NO_TRIS, start, stop, True,
                                                   interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces,
                                                   probe_leaf_pairs)
+    if start == 0 and stop < n_frames:  # every frame it tested is its own
+        return hits, ids, fractions, counts
     frame = hits[:, HIT_FRAME]
     return hits[(frame < n_frames) & ((frame > start) | (start == 0))], ids, fractions, counts
 
@@ -479,6 +482,15 @@ def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, 
 #: scan_intervals' ``touching`` and ``touching_tris`` when it runs the frame tests itself
 _NO_KEYS = np.zeros(0, np.int64)
 _NO_TRIS = np.zeros((0, 2), np.int64)
+
+
+def _joined(parts, width):
+    """The rows of the arrays ``parts`` one after another, as (rows, width): the one
+    non-empty part itself when there is only one (no copy)."""
+    filled = [part for part in parts if part.size]
+    if len(filled) == 1:
+        return filled[0].reshape(-1, width)
+    return np.concatenate(parts).reshape(-1, width)
 
 
 def _frame_shift(offset):
@@ -558,8 +570,8 @@ def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_t
                           (False, INTERPOLATIONS[interpolation], time_tol, dist_tol, config.ONE_SIDED_LEAVES,
                            config.PROBED_FACES, config.PROBE_LEAF_PAIRS),
                           n_steps, workers, progress, scheduler)
-    return (np.concatenate([r[1] for r in results]).reshape(-1, SWEPT_WIDTH),
-            np.concatenate([r[2] for r in results]).reshape(-1, TIMES_WIDTH), _total_counts([r[3] for r in results]))
+    return (_joined([r[1] for r in results], SWEPT_WIDTH), _joined([r[2] for r in results], TIMES_WIDTH),
+            _total_counts([r[3] for r in results]))
 
 
 def frame_contacts(hits, static, n_objects):
@@ -1024,8 +1036,9 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
                                                     interpolation, time_tol, dist_tol, workers, progress, scheduler)
         if continuous:
             static_ids, static_fractions = _static_steps(hits, scene.static, index.size - 1)
-            contacts, where = intervals_from_steps(np.concatenate([ids, static_ids]),
-                                                   np.concatenate([fractions, static_fractions]), hits, frame_time)
+            contacts, where = intervals_from_steps(_joined([ids, static_ids], SWEPT_WIDTH),
+                                                   _joined([fractions, static_fractions], TIMES_WIDTH), hits,
+                                                   frame_time)
         else:
             contacts, where = intervals_from_hits(hits, frame_time)
         stage("contact points")

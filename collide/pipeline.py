@@ -526,13 +526,15 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
         parts = _frame_blocks(rows, steps[rows], poses)
     for items, block, pose_rows in parts:
         pose_rows = np.ascontiguousarray(pose_rows, dtype=np.int64)
-        wanted = np.ascontiguousarray(np.stack([contacts["object_a"][items], contacts["object_b"][items]], axis=-1),
-                                      dtype=np.int64)
-        smallest = np.concatenate([np.zeros((0, 2), np.int64)] + _run_chunks(
-            smallest_touching_pairs, (ps, block, static, pose_rows, wanted), (), items.size, workers, None))
-        if (smallest < 0).any():
-            f = steps[items[np.flatnonzero(smallest[:, 0] < 0)[0]]]
-            raise AssertionError(f"frame {f}: a contact found at this frame has no intersecting triangle pair")
+        wanted = np.empty((items.size, 2), np.int64)  # (a few numpy calls cheaper than np.stack on a first call)
+        wanted[:, 0] = contacts["object_a"][items]
+        wanted[:, 1] = contacts["object_b"][items]
+        smallest = _joined([np.zeros((0, 2), np.int64)] + _run_chunks(
+            smallest_touching_pairs, (ps, block, static, pose_rows, wanted), (), items.size, workers, None), 2)
+        worst = smallest[:, 0].argmin()  # -1 where a contact has no intersecting pair (argmin: cheaper than any)
+        if smallest[worst, 0] < 0:
+            raise AssertionError(f"frame {steps[items[worst]]}: a contact found at this frame has no intersecting "
+                                 f"triangle pair")
         contacts["tri_a"][items] = smallest[:, 0]
         contacts["tri_b"][items] = smallest[:, 1]
 

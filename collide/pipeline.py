@@ -224,7 +224,8 @@ def _chunk_results(kernel, shared, extra, n_items, workers, progress, scheduler=
     range(n_items), in chunk order, computed in parallel.
 
     Locally in ``workers`` threads (the kernels release the GIL, so threads use every
-    core; one worker runs them in this thread, see _InThisThread), chunks sized by
+    core; one worker runs them in this thread, see _InThisThread, and a one-worker run
+    of at most FIRST_CHUNK_ONE_WORKER items is a single call), chunks sized by
     _chunk_size from the time the finished ones took, at most 2 x workers chunks ahead
     of the one yielded, so a caller that streams results out (--triangle-pairs to a
     file) holds a bounded number of them.
@@ -460,8 +461,7 @@ def _run_steps(ps, poses, n_frames, static, filters, interpolation, time_tol, di
     if static_hits is not None:
         hits.append(_repeat_over_frames(static_hits, np.arange(n_frames)))
     return (_joined(hits, HIT_WIDTH), _joined([r[1] for r in results], SWEPT_WIDTH),
-            _joined([r[2] for r in results], TIMES_WIDTH),
-        _total_counts(counts + [r[3] for r in results]))
+            _joined([r[2] for r in results], TIMES_WIDTH), _total_counts(counts + [r[3] for r in results]))
 
 
 def _scan_steps(ps, poses, static, pairs, start, stop, n_frames, interpolation, time_tol, dist_tol, one_sided_leaves,

@@ -519,12 +519,9 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
     if not rows.size:
         return
     rows = rows[np.argsort(steps[rows], kind="stable")]  # by frame: a frame's contacts share its placed vertices
-    every = _all_poses(poses)
-    if every is not None:  # the usual case: one block, in which a frame's row is the frame
-        parts = [(rows, every, steps[rows])]
-    else:
-        parts = _frame_blocks(rows, steps[rows], poses)
-    for items, block, pose_rows in parts:
+    frames = np.ascontiguousarray(steps[rows], dtype=np.int64)
+    for at, block, pose_rows, _ in _contact_blocks(frames, frames, poses):
+        items = rows[at]
         pose_rows = np.ascontiguousarray(pose_rows, dtype=np.int64)
         wanted = np.empty((items.size, 2), np.int64)  # (a few numpy calls cheaper than np.stack on a first call)
         wanted[:, 0] = contacts["object_a"][items]
@@ -537,25 +534,6 @@ def smallest_pairs_at_frames(contacts, where, ps, poses, static, workers=1):
                                  f"triangle pair")
         contacts["tri_a"][items] = smallest[:, 0]
         contacts["tri_b"][items] = smallest[:, 1]
-
-
-def _all_poses(poses):
-    """The poses of every selected frame, float64 (S, N, 3, 4), when they fit one block of
-    PoseSource ``poses`` (then frame f's poses are row f), else None."""
-    return poses.read(0, poses.n_frames) if poses.n_frames <= poses.block else None
-
-
-def _frame_blocks(rows, frames, poses):
-    """Yield (rows, poses, pose_rows) a block of frames at a time: the items ``rows`` (int64
-    (C,)) at frames ``frames`` (int64 (C,), ascending), the poses of that block's frames
-    (PoseSource.at) and each item's row in them."""
-    unique_frames = np.unique(frames)
-    for group in range(0, unique_frames.size, poses.block):
-        group_frames = unique_frames[group:group + poses.block]
-        block, block_rows = poses.at(group_frames)
-        first = np.searchsorted(frames, group_frames[0])
-        last = np.searchsorted(frames, group_frames[-1], side="right")
-        yield rows[first:last], block, block_rows[np.searchsorted(group_frames, frames[first:last])]
 
 
 def _run_swept(ps, poses, static, filters, hits, interpolation, time_tol, dist_tol, workers, progress,
@@ -749,12 +727,7 @@ def _fill_contact_points(contacts, where, ps, poses, interpolation, workers=1):
     fractions = np.ascontiguousarray(fractions, dtype=np.float64)
     steps = np.ascontiguousarray(steps, dtype=np.int64)
     next_frames = np.minimum(steps + 1, poses.n_frames - 1)
-    every = _all_poses(poses)
-    if every is not None:  # the usual case: one block, in which a frame's row is the frame
-        parts = [(np.arange(steps.size), every, steps, next_frames)]
-    else:
-        parts = _contact_blocks(steps, next_frames, poses)
-    for rows, block, row0, row1 in parts:
+    for rows, block, row0, row1 in _contact_blocks(steps, next_frames, poses):
         _run_chunks(contact_points, (ps, np.ascontiguousarray(block, dtype=np.float64), rows, row0, row1, fractions,
                                      contacts["object_a"], contacts["object_b"], contacts["tri_a"], contacts["tri_b"],
                                      point), (interpolation == "screw",), rows.size, workers, None)
@@ -764,7 +737,11 @@ def _fill_contact_points(contacts, where, ps, poses, interpolation, workers=1):
 def _contact_blocks(steps, next_frames, poses):
     """Yield (rows, poses, row0, row1) a block of frames at a time: the contacts ``rows``
     whose frames (steps, next_frames: int64 (C,)) that block holds (PoseSource.at), and
-    the rows of each one's two frames in it."""
+    the rows of each one's two frames in it. Usually every pose is in memory, one block
+    in which frame f is row f: then one group, with no numpy call to find it."""
+    if poses.n_frames <= poses.block:
+        yield np.arange(steps.size), poses.read(0, poses.n_frames), steps, next_frames
+        return
     frames = np.unique(np.concatenate([steps, next_frames]))
     if frames.size <= poses.block:
         groups = [(np.arange(steps.size), frames)]

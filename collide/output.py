@@ -9,7 +9,7 @@ folder, once their process is gone. Only regular files (or new paths) are
 written, never an input of the same run. A full disk or a file size limit is a
 clean InputError (exit 2), never a crash inside HDF5.
 """
-import _signal  # signal's C module (see _signals_deferred)
+import _signal  # signal's C module (see _SignalsDeferred)
 import errno
 import hashlib
 import io
@@ -175,7 +175,7 @@ def remove_stale_temporaries(folder):
 
 
 #: signals that end a run: during a write they are held back until the file is
-#: complete or removed, then delivered again (plain ints: see _signals_deferred)
+#: complete or removed, then delivered again (plain ints: see _SignalsDeferred)
 _STOP_SIGNALS = tuple(int(getattr(signal, name)) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
@@ -223,7 +223,6 @@ class _SignalsDeferred:
         self.previous.clear()
 
 
-_signals_deferred = _SignalsDeferred
 _MAIN_THREAD = threading.main_thread().ident
 
 
@@ -286,7 +285,7 @@ def atomic_path(path, inputs=(), defer_signals=True):
         raise InputError(path, f"cannot write in its folder ({os_problem(exc)})", "a writable folder") from None
     os.close(fd)
     try:
-        with _signals_deferred() if defer_signals else nullcontext([]) as came:
+        with _SignalsDeferred() if defer_signals else nullcontext([]) as came:
             try:
                 yield Path(tmp)
             except OSError as exc:

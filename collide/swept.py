@@ -932,6 +932,38 @@ class Step(NamedTuple):
     probe: FrameTests   #: frame tests inside a step (_probed_window)
 
 
+@njit(cache=True)
+def _step_buffers(n_objects, n_world, find_frames):
+    """scan_intervals' buffers for N objects and W world vertex rows: (Step, Buffers,
+    counts int64 (COUNT_WIDTH,))."""
+    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), new_stamps(n_world), new_stamps(n_world),
+                 _sub_step_buffers(n_objects, n_world),
+                 pair_scratch(),
+                 _frame_tests(n_objects, n_world if find_frames else 0), _frame_tests(n_objects, n_world))
+    buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64),
+                      np.empty((64, 2), np.int64))
+    return state, buffers, np.zeros(COUNT_WIDTH, np.int64)
+
+
+@njit_entry
+def compile_contact_searches(ps, poses, static, time_tol, dist_tol):
+    """Compiles (and caches) the two searches for a contact's moment that scan_intervals
+    calls, _one_sided_window and narrow.candidates_contact_window (with the CCD below
+    them), with the argument types it calls them with, without running them: for
+    collide.warmup, so that another process can compile them while scan_intervals
+    compiles the rest. Takes scan_intervals' first arguments; returns nothing."""
+    n_objects = poses.shape[1]
+    state, buffers, counts = _step_buffers(n_objects, ps.world_start[n_objects], np.bool_(True))
+    motion = np.empty((n_objects, MOTION_WIDTH))
+    none = np.int64(-1)
+    if n_objects >= 0:  # always: the calls below are compiled, never run
+        return
+    _one_sided_window(ps, poses[0], poses[0], motion, none, none, none, static, none, np.bool_(True), np.inf, none,
+                      none, time_tol, dist_tol, state, buffers, counts)
+    _search(ps, motion, state.world0, state.world1, none, none, buffers.tri_pairs, none, state.sub.motion,
+            time_tol, dist_tol, np.bool_(True), np.bool_(True), counts)
+
+
 @njit_entry
 def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start, step_stop, find_frames,
                    interpolation, time_tol, dist_tol, one_sided_leaves, probed_faces, probe_leaf_pairs):
@@ -961,13 +993,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     """
     n_objects = poses.shape[1]
     n_world = ps.world_start[n_objects]
-    state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), new_stamps(n_world), new_stamps(n_world),
-                 _sub_step_buffers(n_objects, n_world),
-                 pair_scratch(),
-                 _frame_tests(n_objects, n_world if find_frames else 0), _frame_tests(n_objects, n_world))
-    buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64),
-                      np.empty((64, 2), np.int64))
-    counts = np.zeros(COUNT_WIDTH, np.int64)
+    state, buffers, counts = _step_buffers(n_objects, n_world, find_frames)
     margin = np.empty(n_objects)
     motion = np.empty((n_objects, MOTION_WIDTH))
     hits = np.empty((16, HIT_WIDTH), np.int64)

@@ -2,8 +2,10 @@
 
 A machine's first scan compiles the numba kernels it needs, one after another, on one
 core; every later run loads them from the kernel cache (collide.jit). The kernels fall
-into a few independent units: the frame scan (``discrete``), the step scan
-(``continuous``), and the set-up kernels (BVH builder, motion summary, contact point).
+into a few units: the frame scan (``discrete``), the step scan (``continuous``) and the
+contact searches it calls (``searches``, compiled apart so that two processes share the
+step scan's compile: see PAIRED), and the set-up kernels (BVH builder, motion summary,
+contact point).
 ``start`` compiles units in separate Python processes (fresh interpreters, never
 fork), each calling its kernels on a tiny scene in memory with no work to do: that
 compiles exactly the specialisations a real scan uses and stores them in the shared
@@ -28,32 +30,56 @@ from pathlib import Path
 
 #: units of work and the kernels they compile
 UNITS = {
-    # the CCD first: while this process compiles it, the discrete unit's process caches
-    # the kernels both scans share, which scan_intervals then loads instead of compiling
-    "continuous": ("triangle_pair_contact", "scan_intervals"),
+    # the step scan in two parts (see PAIRED): its contact searches (with the CCD below
+    # them), and scan_intervals itself, which loads them from the cache when it reaches
+    # them, if the searches' process has cached them by then
+    "searches": ("contact_searches",),
+    "continuous": ("scan_intervals",),
     "discrete": ("scan_frames", "smallest_touching_pairs"),
     "setup": ("bvh", "motion", "contact_point"),
     "lbvh": ("lbvh",),
 }
 #: which units a scan of each mode needs (``lbvh``: only scans with ``--split lbvh``)
-MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("continuous", "discrete", "setup")}
-#: seconds each unit takes to compile alone (2-core machine, numba 0.68, 2026-12-02): for
-#: sharing units among processes so that the longest process ends first possible
-COMPILE_SECONDS = {"continuous": 41.0, "discrete": 20.0, "setup": 12.0, "lbvh": 12.0}
+MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("searches", "continuous", "discrete", "setup")}
+#: seconds each unit takes to compile alone (2-core machine, numba 0.68, 2026-12-07; the
+#: step scan with its searches cached; the discrete unit takes 28 s alone, 7 s after the
+#: step scan, which compiles the kernels both share): for sharing units among processes
+#: so that the longest process ends first possible
+COMPILE_SECONDS = {"continuous": 70.0, "searches": 49.0, "discrete": 20.0, "setup": 15.0, "lbvh": 4.0}
+#: the step scan's two parts. Each starts a process of its own when two are free: the
+#: step scan reaches the searches about 45 s in, the searches' process has cached them
+#: by then, and the warm-up takes 75-80 s instead of 95 s. Otherwise the searches go
+#: before the step scan, in its process.
+PAIRED = ("searches", "continuous")
 
 
 def plan(units, processes, busy=()):
     """Share ``units`` among ``processes`` processes, longest unit first to the least
     loaded process (each process compiles its units one after another: a unit never
-    waits for a core). ``busy``: units already given to the first processes (the
-    scan's own process, say). Returns one list of units per process, in order."""
+    waits for a core), the PAIRED units each first in a free process when there are
+    two, else together, and "continuous" last in its process (what goes before it
+    gives its searches more time). ``busy``: units already given to the first
+    processes (the scan's own process, say). Returns one list of units per process,
+    in order."""
+    def seconds(job):
+        return sum(COMPILE_SECONDS.get(u, 1.0) for u in job)
+
     groups = [list(b) for b in busy] + [[] for _ in range(max(1, processes) - len(busy))]
-    load = [sum(COMPILE_SECONDS.get(u, 1.0) for u in group) for group in groups]
-    for unit in sorted(units, key=lambda u: -COMPILE_SECONDS.get(u, 1.0)):
+    load = [seconds(group) for group in groups]
+    jobs = [[u] for u in units if u not in PAIRED]
+    paired = [u for u in PAIRED if u in units]
+    free = [i for i, group in enumerate(groups) if not group]
+    if len(paired) == 2 and len(free) >= 2:
+        for unit, i in zip(paired, free):
+            groups[i].append(unit)
+            load[i] += seconds([unit])
+    elif paired:
+        jobs.append(paired)
+    for job in sorted(jobs, key=lambda j: -seconds(j)):
         least = min(range(len(groups)), key=lambda i: (load[i], i))
-        groups[least].append(unit)
-        load[least] += COMPILE_SECONDS.get(unit, 1.0)
-    return groups
+        groups[least].extend(job)
+        load[least] += seconds(job)
+    return [sorted(group, key=lambda u: u == "continuous") for group in groups]
 
 
 # --- is the cache warm? ------------------------------------------------------------------------
@@ -205,15 +231,9 @@ def _scan_intervals(ps, poses, static, pairs):
                    1e-9, config.ONE_SIDED_LEAVES, config.PROBED_FACES, config.PROBE_LEAF_PAIRS)
 
 
-def _triangle_pair_contact(ps, poses, static, pairs):
-    import numpy as np
-
-    from .ccd import ccd_work
-    from .motion import MOTION_WIDTH, triangle_pair_contact
-    m = np.zeros(MOTION_WIDTH)
-    p = np.ascontiguousarray(np.eye(3))
-    work = ccd_work()
-    triangle_pair_contact(m, m, p, p, p + 2.0, p + 2.0, 0.0, 0.0, 1e-6, 1e-9, 1.0, False, work, work.counts)
+def _contact_searches(ps, poses, static, pairs):
+    from .swept import compile_contact_searches
+    compile_contact_searches(ps, poses, static, 1e-6, 1e-9)
 
 
 def _bvh(ps, poses, static, pairs):
@@ -245,8 +265,8 @@ def _contact_point(ps, poses, static, pairs):
 
 
 _KERNELS = {"scan_frames": _scan_frames, "smallest_touching_pairs": _smallest_touching_pairs,
-            "scan_intervals": _scan_intervals, "triangle_pair_contact": _triangle_pair_contact, "bvh": _bvh,
-            "lbvh": _lbvh, "motion": _motion, "contact_point": _contact_point}
+            "scan_intervals": _scan_intervals, "contact_searches": _contact_searches, "bvh": _bvh, "lbvh": _lbvh,
+            "motion": _motion, "contact_point": _contact_point}
 
 
 if __name__ == "__main__":

@@ -233,6 +233,30 @@ def test_warm_up_plan_shares_units_nearly_as_well_as_the_best_split(monkeypatch)
     assert warmup.plan(["a", "b"], 2, busy=[["setup"]]) == [["setup", "b"], ["a"]]
 
 
+def test_warm_up_plan_starts_the_step_scan_and_its_searches_in_two_processes(monkeypatch):
+    """The step scan ("continuous") and its contact searches ("searches") each start a
+    process of their own when two are free, the step scan last in its process; with one
+    free process the searches go before the step scan, in its process; every unit is
+    given once."""
+    from collide import warmup
+    monkeypatch.setattr(warmup, "COMPILE_SECONDS", {"continuous": 70.0, "searches": 49.0, "discrete": 20.0,
+                                                    "setup": 15.0, "lbvh": 4.0})
+    units = ["searches", "continuous", "discrete", "setup", "lbvh"]
+    assert warmup.plan(units, 2) == [["searches", "discrete", "setup"], ["lbvh", "continuous"]]
+    assert warmup.plan(units[:3], 2, busy=[["setup"]]) == [["setup", "discrete"], ["searches", "continuous"]]
+    assert warmup.plan(units[:3], 3, busy=[["setup"]]) == [["setup", "discrete"], ["searches"], ["continuous"]]
+    for processes in (1, 2, 3, 4):
+        for busy in ([], [["setup"]]):
+            groups = warmup.plan([u for u in units if [u] not in busy], processes, busy=busy)
+            assert sorted(sum(groups, [])) == sorted(units)
+            holder = next(g for g in groups if "continuous" in g)
+            assert holder[-1] == "continuous"
+            if "searches" in holder:
+                assert holder.index("searches") < holder.index("continuous")
+            else:
+                assert next(g for g in groups if "searches" in g)[0] == "searches"
+
+
 def test_mesh_suffixes_are_kept_per_trimesh_version(tmp_path, monkeypatch):
     """The suffix list read from the cache folder is trimesh's own; a missing or damaged
     file is replaced by trimesh's answer."""

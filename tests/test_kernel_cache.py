@@ -85,7 +85,7 @@ class Count(event.Listener):
     def on_end(self, e): pass
 event.register("numba:compile", Count())
 from collide import warmup
-for unit in ("discrete", "continuous"):
+for unit in ("searches", "discrete", "continuous"):
     warmup.compile_unit(unit)
 print(json.dumps(compiled))
 """
@@ -96,14 +96,17 @@ def test_the_scans_compile_one_copy_of_each_descent(tmp_path):
     """A constant passed to a compiled function is typed as a literal, and each literal
     value compiles a copy of that function and of everything it calls: the copies of the
     frame descent made the step scan's compile about a third longer. Each descent
-    function is compiled once for both scans."""
+    function is compiled once for both scans, and the contact searches that the warm-up
+    compiles apart from the step scan (swept.compile_contact_searches) are the ones the
+    step scan calls: it compiles no other copy of them."""
     env = {"COLLIDE_KERNEL_CACHE_DIR": str(tmp_path / "kernels"), "PATH": "/usr/bin:/bin"}
     proc = subprocess.run([sys.executable, "-c", COMPILES, str(REPO)], env=env, capture_output=True, text=True,
                           timeout=900)
     assert proc.returncode == 0, proc.stderr
     compiled = json.loads(proc.stdout)
     for name in ("scan_frames", "scan_intervals", "_descent_hit", "overlapping_leaves", "swept_leaves",
-                 "intersecting_triangles", "triangle_pair_count"):
+                 "intersecting_triangles", "triangle_pair_count", "compile_contact_searches",
+                 "_one_sided_window", "candidates_contact_window", "triangle_pair_contact"):
         assert compiled.get(name) == 1, (name, compiled.get(name))
     for name in ("_pair_triangles", "pair_leaves"):  # inlined into their callers (inline="always")
         assert compiled.get(name) is None, (name, compiled.get(name))
@@ -129,8 +132,9 @@ def test_warmup_command_adds_the_lbvh_builder_only_when_asked(monkeypatch):
     monkeypatch.setattr(warmup, "mark_warm", lambda mode: None)  # nothing was compiled
     for args in (["--split", "lbvh"], [], ["--split", "median"], ["--mode", "discrete", "--split", "lbvh"]):
         assert run_cli("warmup", *args).returncode == 0
-    assert given == [["continuous", "discrete", "lbvh", "setup"], ["continuous", "discrete", "setup"],
-                     ["continuous", "discrete", "setup"], ["discrete", "lbvh", "setup"]]
+    assert given == [["continuous", "discrete", "lbvh", "searches", "setup"],
+                     ["continuous", "discrete", "searches", "setup"], ["continuous", "discrete", "searches", "setup"],
+                     ["discrete", "lbvh", "setup"]]
 
 
 def _collide_dispatchers():

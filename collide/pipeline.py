@@ -780,36 +780,28 @@ def _compile_note(continuous):
 def _start_warm_up(mode):
     """On a machine whose kernel cache does not hold this mode's kernels yet, start
     compiling them (collide.warmup) in worker processes while the scan loads its
-    inputs, one process per core, the scan's own process included: it compiles the
-    set-up kernels, and more units if that shares the work best. Returns (workers,
-    units the scan compiles itself), or None when the cache is warm or there is one
-    core only."""
+    inputs, one per core. The scan's own process compiles the set-up kernels as it
+    needs them (BVH builder, motion summary, contact points: about 15 s, so that a bad
+    input is still reported early) and nothing else: with every worker free from the
+    start, the step scan and its contact searches compile side by side
+    (warmup.PAIRED). Returns the workers, or None when the cache is warm or there is
+    one core only."""
     from . import warmup
     processes = os.cpu_count() or 1
     if warmup.is_warm(mode) or processes < 2:
         return None
     units = [u for u in warmup.MODE_UNITS[mode] if u != "setup"]
-    own, *groups = warmup.plan(units, min(processes, len(units) + 1), busy=[["setup"]])
-    return warmup.start(groups), own[1:]
+    return warmup.start(warmup.plan(units, min(processes, len(units))))
 
 
-def _finish_warm_up(compiling):
-    """Compile the scan's own share of the warm-up, then wait for the workers
-    (announcing it: this is a cold first run)."""
-    if compiling is None:
+def _finish_warm_up(workers):
+    """Wait for the warm-up workers (announcing it: this is a cold first run)."""
+    if workers is None:
         return
-    from . import warmup
-    workers, own = compiling
     processes = len(workers.processes)
-    announce(f"compiling collide's numba kernels for this machine here and in {processes} more "
+    announce(f"compiling collide's numba kernels for this machine in {processes} worker "
              f"process{'es' if processes > 1 else ''} (first run only: a minute or two; later runs load them "
              f"from {kernel_cache_dir()})")
-    try:
-        for unit in own:
-            warmup.compile_unit(unit)
-    except BaseException:
-        workers.stop()
-        raise
     _, seconds = workers.finish()
     announce(f"compiled the kernels in {seconds:.0f} s")
 
@@ -995,7 +987,7 @@ def scan(meshes, trajectory, mode="continuous", split="sah", leaf_size=None,
             glob, max_memory, allow_external_data, cache, compiling, workers, stage)
     finally:
         if compiling is not None:
-            compiling[0].stop()
+            compiling.stop()
     frame_time = scene.time[index]
     continuous = mode == "continuous"
     cache_stats = timings.pop("cache")

@@ -9,10 +9,10 @@ contact point).
 ``start`` compiles units in separate Python processes (fresh interpreters, never
 fork), each calling its kernels on a tiny scene in memory with no work to do: that
 compiles exactly the specialisations a real scan uses and stores them in the shared
-cache. A scan that finds the cache cold starts the workers at once, validates its
-inputs meanwhile (so a bad input still fails at once, with its one-line error, and
-stops the workers), compiles the set-up kernels itself, then waits for the workers and
-loads their kernels.
+cache. A scan that finds the cache cold starts the workers at once (one per core),
+validates its inputs meanwhile (so a bad input still fails at once, with its one-line
+error, and stops the workers), compiles the set-up kernels itself as it needs them,
+then waits for the workers and loads their kernels.
 
 A marker file per mode and CPU in the kernel folder records that a scan of that mode
 completed with warm kernels; without it, the next scan of that mode warms up first.

@@ -784,24 +784,25 @@ def _start_warm_up(mode):
     needs them (BVH builder, motion summary, contact points: about 15 s, so that a bad
     input is still reported early) and nothing else: with every worker free from the
     start, the step scan and its contact searches compile side by side
-    (warmup.PAIRED). Returns the workers, or None when the cache is warm or there is
-    one core only."""
+    (warmup.PAIRED). Says so at once (the first run is slow). Returns the workers, or
+    None when the cache is warm or there is one core only."""
     from . import warmup
     processes = os.cpu_count() or 1
     if warmup.is_warm(mode) or processes < 2:
         return None
     units = [u for u in warmup.MODE_UNITS[mode] if u != "setup"]
-    return warmup.start(warmup.plan(units, min(processes, len(units))))
+    workers = warmup.start(warmup.plan(units, min(processes, len(units))))
+    count = len(workers.processes)
+    announce(f"compiling collide's numba kernels for this machine in {count} worker "
+             f"process{'es' if count > 1 else ''} and this one (first run only: a minute or two; later runs load "
+             f"them from {kernel_cache_dir()})")
+    return workers
 
 
 def _finish_warm_up(workers):
-    """Wait for the warm-up workers (announcing it: this is a cold first run)."""
+    """Wait for the warm-up workers."""
     if workers is None:
         return
-    processes = len(workers.processes)
-    announce(f"compiling collide's numba kernels for this machine in {processes} worker "
-             f"process{'es' if processes > 1 else ''} (first run only: a minute or two; later runs load them "
-             f"from {kernel_cache_dir()})")
     _, seconds = workers.finish()
     announce(f"compiled the kernels in {seconds:.0f} s")
 

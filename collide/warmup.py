@@ -46,31 +46,28 @@ MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("searches", "con
 #: step scan, which compiles the kernels both share): for sharing units among processes
 #: so that the longest process ends first possible
 COMPILE_SECONDS = {"continuous": 70.0, "searches": 49.0, "discrete": 20.0, "setup": 15.0, "lbvh": 4.0}
-#: the step scan's two parts. Each starts a process of its own when two are free: the
-#: step scan reaches the searches about 45 s in, the searches' process has cached them
-#: by then, and the warm-up takes 75-80 s instead of 95 s. Otherwise the searches go
-#: before the step scan, in its process.
+#: the step scan's two parts. With two processes or more each starts one: the step scan
+#: reaches the searches about 45 s in, the searches' process has cached them by then, and
+#: the warm-up takes 75-80 s instead of 95 s. With one, the searches go first.
 PAIRED = ("searches", "continuous")
 
 
-def plan(units, processes, busy=()):
+def plan(units, processes):
     """Share ``units`` among ``processes`` processes, longest unit first to the least
     loaded process (each process compiles its units one after another: a unit never
-    waits for a core), the PAIRED units each first in a free process when there are
-    two, else together, and "continuous" last in its process (what goes before it
-    gives its searches more time). ``busy``: units already given to the first
-    processes (the scan's own process, say). Returns one list of units per process,
-    in order."""
+    waits for a core), the PAIRED units each first in a process of its own when there
+    are two processes or more, else together, and "continuous" last in its process
+    (what goes before it gives its searches more time). Returns one list of units per
+    process, in order."""
     def seconds(job):
         return sum(COMPILE_SECONDS.get(u, 1.0) for u in job)
 
-    groups = [list(b) for b in busy] + [[] for _ in range(max(1, processes) - len(busy))]
-    load = [seconds(group) for group in groups]
+    groups = [[] for _ in range(max(1, processes))]
+    load = [0.0] * len(groups)
     jobs = [[u] for u in units if u not in PAIRED]
     paired = [u for u in PAIRED if u in units]
-    free = [i for i, group in enumerate(groups) if not group]
-    if len(paired) == 2 and len(free) >= 2:
-        for unit, i in zip(paired, free):
+    if len(paired) == 2 and len(groups) >= 2:
+        for i, unit in enumerate(paired):
             groups[i].append(unit)
             load[i] += seconds([unit])
     elif paired:

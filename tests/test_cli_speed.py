@@ -210,9 +210,9 @@ def test_first_scan_announces_compiling_and_warm_scan_says_nothing(two_boxes, tm
 
 
 def test_warm_up_plan_shares_units_nearly_as_well_as_the_best_split(monkeypatch):
-    """plan (longest unit first to the least loaded process) gives every unit once, keeps
-    the busy units where they were, and its longest process is within Graham's 4/3 of
-    the best split found by trying every assignment."""
+    """plan (longest unit first to the least loaded process) gives every unit once, and
+    its longest process is within Graham's 4/3 of the best split found by trying every
+    assignment."""
     import itertools
 
     import numpy as np
@@ -229,30 +229,31 @@ def test_warm_up_plan_shares_units_nearly_as_well_as_the_best_split(monkeypatch)
         best = min(max(sum(c for c, p in zip(costs.values(), owner) if p == k) for k in range(processes))
                    for owner in itertools.product(range(processes), repeat=n_units))
         assert longest <= best * 4 / 3 + 1e-9, (costs, groups)
-    monkeypatch.setattr(warmup, "COMPILE_SECONDS", {"a": 10.0, "b": 5.0, "setup": 8.0})
-    assert warmup.plan(["a", "b"], 2, busy=[["setup"]]) == [["setup", "b"], ["a"]]
 
 
 def test_warm_up_plan_starts_the_step_scan_and_its_searches_in_two_processes(monkeypatch):
     """The step scan ("continuous") and its contact searches ("searches") each start a
-    process of their own when two are free, the step scan last in its process; with one
-    free process the searches go before the step scan, in its process; every unit is
-    given once."""
+    process of their own when there are two or more, the step scan last in its process;
+    with one process the searches go before the step scan; every unit is given once."""
     from collide import warmup
     monkeypatch.setattr(warmup, "COMPILE_SECONDS", {"continuous": 70.0, "searches": 49.0, "discrete": 20.0,
                                                     "setup": 15.0, "lbvh": 4.0})
     units = ["searches", "continuous", "discrete", "setup", "lbvh"]
     assert warmup.plan(units, 2) == [["searches", "discrete", "setup"], ["lbvh", "continuous"]]
-    assert warmup.plan(units[:3], 2, busy=[["setup"]]) == [["setup", "discrete"], ["searches", "continuous"]]
-    assert warmup.plan(units[:3], 3, busy=[["setup"]]) == [["setup", "discrete"], ["searches"], ["continuous"]]
-    for processes in (1, 2, 3, 4):
-        for busy in ([], [["setup"]]):
-            groups = warmup.plan([u for u in units if [u] not in busy], processes, busy=busy)
-            assert sorted(sum(groups, [])) == sorted(units)
+    assert warmup.plan(units[:3], 2) == [["searches", "discrete"], ["continuous"]]
+    assert warmup.plan(units[:3], 3) == [["searches"], ["continuous"], ["discrete"]]
+    assert warmup.plan(units, 1) == [["searches", "discrete", "setup", "lbvh", "continuous"]]
+    for processes in (1, 2, 3, 4, 6):
+        for n_units in range(1, len(units) + 1):
+            given = units[:n_units]
+            groups = warmup.plan(given, processes)
+            assert len(groups) == processes and sorted(sum(groups, [])) == sorted(given)
+            if "continuous" not in given:
+                continue
             holder = next(g for g in groups if "continuous" in g)
             assert holder[-1] == "continuous"
             if "searches" in holder:
-                assert holder.index("searches") < holder.index("continuous")
+                assert processes == 1
             else:
                 assert next(g for g in groups if "searches" in g)[0] == "searches"
 

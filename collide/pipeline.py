@@ -793,9 +793,13 @@ def _start_warm_up(mode):
     units = [u for u in warmup.MODE_UNITS[mode] if u != "setup"]
     workers = warmup.start(warmup.plan(units, min(processes, len(units))))
     count = len(workers.processes)
-    announce(f"compiling collide's numba kernels for this machine in {count} worker "
-             f"process{'es' if count > 1 else ''} and this one (first run only: a minute or two; later runs load "
-             f"them from {kernel_cache_dir()})")
+    try:
+        announce(f"compiling collide's numba kernels for this machine in {count} worker "
+                 f"process{'es' if count > 1 else ''} (first run only: a minute or two; later runs load them "
+                 f"from {kernel_cache_dir()})")
+    except BaseException:  # a stop signal in between: no worker left running
+        workers.stop()
+        raise
     return workers
 
 

@@ -951,7 +951,8 @@ def compile_contact_searches(ps, poses, static, time_tol, dist_tol):
     calls, _one_sided_window and narrow.candidates_contact_window (with the CCD below
     them), with the argument types it calls them with, without running them: for
     collide.warmup, so that another process can compile them while scan_intervals
-    compiles the rest. Takes scan_intervals' first arguments; returns nothing."""
+    compiles the rest. Takes scan_intervals' ps, poses, static, time_tol and dist_tol;
+    returns nothing."""
     n_objects = poses.shape[1]
     state, buffers, counts = _step_buffers(n_objects, ps.world_start[n_objects], np.bool_(True))
     motion = np.empty((n_objects, MOTION_WIDTH))

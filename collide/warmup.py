@@ -41,24 +41,25 @@ UNITS = {
 }
 #: which units a scan of each mode needs (``lbvh``: only scans with ``--split lbvh``)
 MODE_UNITS = {"discrete": ("discrete", "setup"), "continuous": ("searches", "continuous", "discrete", "setup")}
-#: seconds each unit takes to compile alone (2-core machine, numba 0.68, 2026-12-07; the
-#: step scan with its searches cached; the discrete unit takes 28 s alone, 7 s after the
-#: step scan, which compiles the kernels both share): for sharing units among processes
-#: so that the longest process ends first possible
+#: seconds each unit takes to compile (2-core machine, numba 0.68, 2026-12-07; the step
+#: scan with its searches cached; for the discrete unit a planning figure between 28 s
+#: alone and 7 s after the step scan, which compiles the kernels both share): for sharing
+#: units among processes so that the longest process ends first possible
 COMPILE_SECONDS = {"continuous": 70.0, "searches": 49.0, "discrete": 20.0, "setup": 15.0, "lbvh": 4.0}
-#: the step scan's two parts. With two processes or more each starts one: the step scan
-#: reaches the searches about 45 s in, the searches' process has cached them by then, and
-#: the warm-up takes 75-80 s instead of 95 s. With one, the searches go first.
+#: the step scan's two parts. With two processes or more they start the first two: the
+#: step scan reaches the searches about 45 s in, the searches' process has usually cached
+#: them by then (else the step scan compiles them too), and the warm-up takes about 80 s
+#: instead of 95 s on two cores. With one process, the searches go first.
 PAIRED = ("searches", "continuous")
 
 
 def plan(units, processes):
     """Share ``units`` among ``processes`` processes, longest unit first to the least
     loaded process (each process compiles its units one after another: a unit never
-    waits for a core), the PAIRED units each first in a process of its own when there
-    are two processes or more, else together, and "continuous" last in its process
-    (what goes before it gives its searches more time). Returns one list of units per
-    process, in order."""
+    waits for a core). With two processes or more the PAIRED units go to the first two,
+    one each, before the others are shared; "continuous" is then moved last in its
+    process (what goes before it gives its searches more time). Returns one list of
+    units per process, in order."""
     def seconds(job):
         return sum(COMPILE_SECONDS.get(u, 1.0) for u in job)
 

@@ -143,6 +143,41 @@ def test_warmup_command_adds_the_lbvh_builder_only_when_asked(monkeypatch):
                      ["discrete", "lbvh", "setup"]]
 
 
+@pytest.mark.parametrize("mode, groups", [("continuous", [["searches", "discrete"], ["continuous"]]),
+                                          ("discrete", [["discrete"]])])
+def test_a_cold_scan_gives_every_unit_to_workers_says_so_and_stops_them_on_bad_input(
+        two_boxes, tmp_path, monkeypatch, caplog, mode, groups):
+    """On a cold kernel cache with two cores a scan starts one worker per core with every
+    unit but the set-up kernels (its own process compiles those as it needs them), the
+    step scan and its searches in different workers; it says at once that it compiles,
+    and a bad input stops the workers (recorded here instead of started)."""
+    import logging
+
+    from collide import pipeline, warmup
+    from collide.errors import InputError
+    given, stopped = [], []
+
+    class Recorder:
+        def __init__(self, groups):
+            given.append(groups)
+            self.processes = groups
+
+        def stop(self):
+            stopped.append(True)
+
+    monkeypatch.setattr(warmup, "start", Recorder)
+    monkeypatch.setattr(warmup, "is_warm", lambda mode: False)
+    monkeypatch.setattr(pipeline.os, "cpu_count", lambda: 2)
+    meshes, _ = two_boxes
+    with caplog.at_level(logging.WARNING, logger="collide"), pytest.raises(InputError):
+        collide.scan(meshes, tmp_path / "missing.h5", mode=mode)
+    assert given == [groups] and stopped == [True]
+    count = len(groups)
+    notes = [r.getMessage() for r in caplog.records if "compiling collide's numba kernels" in r.getMessage()]
+    assert notes and notes[0].startswith(f"compiling collide's numba kernels for this machine in {count} worker "
+                                         f"process{'es' if count > 1 else ''} (first run only"), notes
+
+
 def _collide_dispatchers():
     """Every numba dispatcher defined in collide's modules."""
     found = {}

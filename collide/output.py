@@ -279,12 +279,15 @@ def atomic_path(path, inputs=(), defer_signals=True):
     target = check_output_path(path, inputs)
     folder = target.parent if str(target.parent) else Path(".")
     remove_stale_temporaries(folder)
+    tmp = None
     try:
-        fd, tmp = tempfile.mkstemp(prefix=temporary_prefix(target), suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise InputError(path, f"cannot write in its folder ({os_problem(exc)})", "a writable folder") from None
-    os.close(fd)
-    try:
+        with signals_held():  # a stop signal before tmp is known would leave the file behind
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=temporary_prefix(target), suffix=".tmp", dir=folder)
+            except OSError as exc:
+                raise InputError(path, f"cannot write in its folder ({os_problem(exc)})", "a writable folder") \
+                    from None
+            os.close(fd)
         with _SignalsDeferred() if defer_signals else nullcontext([]) as came:
             try:
                 yield Path(tmp)
@@ -301,7 +304,8 @@ def atomic_path(path, inputs=(), defer_signals=True):
         except OSError as exc:
             raise write_error(path, exc) from None
     except BaseException:
-        _remove(tmp)
+        if tmp is not None:
+            _remove(tmp)
         raise
 
 

@@ -248,41 +248,40 @@ def test_signal_during_scan_exits_cleanly_and_keeps_the_old_output(slow_scene, t
     assert out.read_bytes() == b"old result" and sorted(p.name for p in tmp_path.iterdir()) == ["c.h5"]
 
 
-def test_sigterm_as_the_temporary_file_is_made_drops_it(scanned, tmp_path):
-    """SIGTERM the instant the output's temporary file exists (before its name is
-    returned; a test that signals when it sees the file hits this): exit 143, the
-    temporary file removed, the old output kept."""
+def _sigterm_scan_keeps_the_old_output(scanned, tmp_path, patch):
+    """A discrete scan into an existing output, run by a program that first executes
+    ``patch`` (Python source that arranges a SIGTERM at some moment): exit 143 with
+    the one-line notice, no temporary file left, the old output kept."""
     meshes, traj, _ = scanned
     out = tmp_path / "c.h5"
     out.write_bytes(b"old result")
-    program = ("import os, signal, sys, tempfile\n"
-               "real = tempfile.mkstemp\n"
-               "def made(*a, **k):\n    r = real(*a, **k)\n    os.kill(os.getpid(), signal.SIGTERM)\n    return r\n"
-               "tempfile.mkstemp = made\n"
-               "from collide_cli.main import main\nmain(sys.argv[1:])\n")
+    program = "import os, signal, sys\n" + patch + "from collide_cli.main import main\nmain(sys.argv[1:])\n"
     proc = subprocess.run([sys.executable, "-c", program, "scan", str(meshes), str(traj), "-o", str(out),
                            "--mode", "discrete"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 143, proc.stderr
     assert proc.stderr.strip().splitlines()[-1] == "collide: terminated by SIGTERM", proc.stderr
     assert out.read_bytes() == b"old result" and sorted(p.name for p in tmp_path.iterdir()) == ["c.h5"]
+
+
+def test_sigterm_as_the_temporary_file_is_made_drops_it(scanned, tmp_path):
+    """SIGTERM the instant the output's temporary file exists (before its name is
+    returned; a test that signals when it sees the file hits this): exit 143, the
+    temporary file removed, the old output kept."""
+    _sigterm_scan_keeps_the_old_output(scanned, tmp_path, (
+        "import tempfile\n"
+        "real = tempfile.mkstemp\n"
+        "def made(*a, **k):\n    r = real(*a, **k)\n    os.kill(os.getpid(), signal.SIGTERM)\n    return r\n"
+        "tempfile.mkstemp = made\n"))
 
 
 def test_sigterm_while_writing_drops_the_temporary_file(scanned, tmp_path):
     """SIGTERM that arrives in the middle of the HDF5 write: held back until the write
     is done, then the temporary file is removed and the old output kept (exit 143)."""
-    meshes, traj, _ = scanned
-    out = tmp_path / "c.h5"
-    out.write_bytes(b"old result")
-    program = ("import os, signal, sys, collide.output as o\n"
-               "real = o._write_columns\n"
-               "def columns(*a):\n    os.kill(os.getpid(), signal.SIGTERM)\n    return real(*a)\n"
-               "o._write_columns = columns\n"
-               "from collide_cli.main import main\nmain(sys.argv[1:])\n")
-    proc = subprocess.run([sys.executable, "-c", program, "scan", str(meshes), str(traj), "-o", str(out),
-                           "--mode", "discrete"], capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 143, proc.stderr
-    assert proc.stderr.strip().splitlines()[-1] == "collide: terminated by SIGTERM", proc.stderr
-    assert out.read_bytes() == b"old result" and sorted(p.name for p in tmp_path.iterdir()) == ["c.h5"]
+    _sigterm_scan_keeps_the_old_output(scanned, tmp_path, (
+        "import collide.output as o\n"
+        "real = o._write_columns\n"
+        "def columns(*a):\n    os.kill(os.getpid(), signal.SIGTERM)\n    return real(*a)\n"
+        "o._write_columns = columns\n"))
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="needs Linux /proc")

@@ -66,7 +66,9 @@ def scan_once(tree, args, mode):
 def compare(args, mode):
     """Alternating rounds of one mode; prints the medians, the ratio and the contacts' verdict."""
     trees = {"base": args.base, "new": args.new}
-    for tree in trees.values():  # untimed: compiles the tree's kernels if they are not cached yet
+    print(f"{mode}: an untimed scan with each tree first (about 80 s each if its kernels are not compiled yet)",
+          flush=True)
+    for tree in trees.values():
         scan_once(tree, args, mode)
     records = {name: [] for name in trees}
     for round_ in range(args.rounds):

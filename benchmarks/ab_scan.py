@@ -103,6 +103,8 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--workers", type=int, default=1)
     args = parser.parse_args(argv)
+    if args.rounds < 1 or args.workers < 1:
+        parser.error("--rounds and --workers take a whole number of at least 1")
     for name in ("base", "new"):
         tree = getattr(args, name)
         if not (tree / "collide" / "__init__.py").is_file():

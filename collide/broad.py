@@ -754,6 +754,39 @@ def _moving_node_box(box, rp0, rp1, abs0, abs1):
             max(abs(y0), abs(y1), abs(y2), abs(y3)), max(abs(z0), abs(z1), abs(z2), abs(z3)))
 
 
+
+@njit(cache=True, inline="always")
+def rigid_placed_node(lo, hi, node, placing):
+    """A node's box as rigid_pair_window reads it: (its own box (node_box 6-tuple), and
+    that box placed in the other object's frame at both ends of the step
+    (_moving_node_box 15-tuple)). placing = (rp0, rp1, abs0, abs1): the pose tuples
+    placing the node's object in the other's frame at both ends and their |R|."""
+    own = node_box(lo, hi, node)
+    return own, _moving_node_box(own, placing[0], placing[1], placing[2], placing[3])
+
+
+@njit(cache=True, inline="always")
+def rigid_pair_window(node_a, node_b, margin_a, margin_b):
+    """When, within the step, a node of A and a node of B (rigid_placed_node pairs) can
+    meet under RULE_SWEPT_RIGID's placements (swept_leaves'): (t_lo, t_hi), fractions of
+    the step, t_lo > t_hi when never. In B's frame, each point of A's node at fraction t
+    lies within margin_a (its deviation bound, rigid_frame_deviation, and the rounding
+    margin) of the blend (1 - t) start box + t end box, and B's node stays put:
+    windows.box_window of the two. The same seen from A (margin_b), intersected. Where
+    swept_leaves finds two nodes apart, their window is empty."""
+    t_lo, t_hi = box_window(node_a[1], _still_node_box(node_b[0]), margin_a)
+    if t_lo > t_hi:
+        return t_lo, t_hi
+    u_lo, u_hi = box_window(node_b[1], _still_node_box(node_a[0]), margin_b)
+    return max(t_lo, u_lo), min(t_hi, u_hi)
+
+
+@njit(cache=True, inline="always")
+def _still_node_box(box):
+    """A node's box (node_box 6-tuple) that does not move, in windows.moving_box's layout."""
+    return (box[0], box[3], box[0], box[3], box[1], box[4], box[1], box[4], box[2], box[5], box[2], box[5],
+            max(abs(box[0]), abs(box[3])), max(abs(box[1]), abs(box[4])), max(abs(box[2]), abs(box[5])))
+
 @njit(cache=True)
 def with_room(rows, n, need):
     """rows (cap, w), grown (grown_rows, first n rows kept) until it has at least ``need`` rows.

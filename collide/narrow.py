@@ -182,40 +182,14 @@ def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_
     room = triangle_pair_count(leaves, n_leaves, count)
     windows = np.empty((max(room, 1), 2))
     out = with_room(out, n, room)
-    eta = motion_a[M_ETA] + motion_b[M_ETA]
     widest = 0
     for k in range(n_leaves):
         widest = max(widest, count[leaves[k, 1]])
-    side_b = np.empty((widest, _SIDE_WIDTH))  # a leaf of B's triangles (_set_side_row)
+    side_b = np.empty((widest, SIDE_WIDTH))  # a leaf of B's triangles (_set_side_row)
     for k in range(n_leaves):  # out and windows have room for every pair: not rebound in here
-        la = leaves[k, 0]
-        lb = leaves[k, 1]
-        for j in range(count[lb]):
-            face = face_base_b + prim_ids[first[lb] + j]
-            q0 = gathered_corners(world0, world_base_b, faces, face)
-            _set_side_row(side_b, j, q0, gathered_corners(world1, world_base_b, faces, face),
-                          corners_deviation(motion_b, q0))
-        for ia in range(first[la], first[la] + count[la]):
-            tri_a = prim_ids[ia]
-            p0 = gathered_corners(world0, world_base_a, faces, face_base_a + tri_a)
-            p1 = gathered_corners(world1, world_base_a, faces, face_base_a + tri_a)
-            p_box = moving_box(p0, p1)
-            dev_p = corners_deviation(motion_a, p0)
-            for j in range(count[lb]):
-                counts[COUNT_TRIANGLE_PAIRS] += 1
-                margin = dist_tol + (dev_p + side_b[j, _SIDE_DEV]) + eta
-                q_box = _side_box(side_b, j)
-                t_lo, t_hi = box_window(p_box, q_box, margin)
-                if t_lo > t_hi or t_hi < after or t_lo > before:
-                    continue
-                t_lo, t_hi = cross_window(p0, p1, _side_corners(side_b, j, 0), _side_corners(side_b, j, 9), margin,
-                                          largest_coordinate(p_box, q_box), t_lo, t_hi)
-                if t_lo <= t_hi and t_hi >= after and t_lo <= before:
-                    out[n, 0] = tri_a
-                    out[n, 1] = prim_ids[first[lb] + j]
-                    windows[n, 0] = t_lo
-                    windows[n, 1] = t_hi
-                    n += 1
+        n = leaf_pair_candidates(leaves[k, 0], leaves[k, 1], first, count, prim_ids, faces, face_base_a,
+                                 face_base_b, world0, world1, world_base_a, world_base_b, motion_a, motion_b, dist_tol,
+                                 after, before, side_b, out, windows, n, counts)
     if n > 1:  # order by (tri_a, tri_b): keys tri_a * span + tri_b (most calls find 0 or 1: no scratch)
         span = 0
         for r in range(n):
@@ -228,6 +202,43 @@ def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_
         reorder_rows(windows, order)
     return out, n, windows[:n]
 
+
+
+@njit_borrowing
+def leaf_pair_candidates(la, lb, first, count, prim_ids, faces, face_base_a, face_base_b, world0, world1,
+                         world_base_a, world_base_b, motion_a, motion_b, dist_tol, after, before, side_b, out, windows,
+                         n, counts):
+    """swept_candidates of the one leaf pair (la, lb), in the order of its leaves'
+    triangles, written to rows n on of out and windows (room for count[la] * count[lb]
+    more); side_b: float64 (at least count[lb], SIDE_WIDTH) scratch. Returns the new n."""
+    eta = motion_a[M_ETA] + motion_b[M_ETA]
+    for j in range(count[lb]):
+        face = face_base_b + prim_ids[first[lb] + j]
+        q0 = gathered_corners(world0, world_base_b, faces, face)
+        _set_side_row(side_b, j, q0, gathered_corners(world1, world_base_b, faces, face),
+                      corners_deviation(motion_b, q0))
+    for ia in range(first[la], first[la] + count[la]):
+        tri_a = prim_ids[ia]
+        p0 = gathered_corners(world0, world_base_a, faces, face_base_a + tri_a)
+        p1 = gathered_corners(world1, world_base_a, faces, face_base_a + tri_a)
+        p_box = moving_box(p0, p1)
+        dev_p = corners_deviation(motion_a, p0)
+        for j in range(count[lb]):
+            counts[COUNT_TRIANGLE_PAIRS] += 1
+            margin = dist_tol + (dev_p + side_b[j, _SIDE_DEV]) + eta
+            q_box = _side_box(side_b, j)
+            t_lo, t_hi = box_window(p_box, q_box, margin)
+            if t_lo > t_hi or t_hi < after or t_lo > before:
+                continue
+            t_lo, t_hi = cross_window(p0, p1, _side_corners(side_b, j, 0), _side_corners(side_b, j, 9), margin,
+                                      largest_coordinate(p_box, q_box), t_lo, t_hi)
+            if t_lo <= t_hi and t_hi >= after and t_lo <= before:
+                out[n, 0] = tri_a
+                out[n, 1] = prim_ids[first[lb] + j]
+                windows[n, 0] = t_lo
+                windows[n, 1] = t_hi
+                n += 1
+    return n
 
 class Pending(NamedTuple):
     """Triangle pairs waiting to be tried, first the smallest (key, tri_a, tri_b): a binary
@@ -276,12 +287,32 @@ def _swap(pending, i, j):
 @njit(cache=True)
 def pending_push(pending, key, tri_a, tri_b):
     """Add (key, tri_a, tri_b); returns pending (grown when full)."""
+    if pending.size[0] == pending.keys.shape[0]:
+        pending = pending_with_room(pending, 1)
+    heap_insert(pending, key, tri_a, tri_b)
+    return pending
+
+
+@njit(cache=True)
+def pending_with_room(pending, extra):
+    """pending, or a copy with room for at least ``extra`` more rows when it lacks it."""
     n = pending.size[0]
-    if n == pending.keys.shape[0]:
-        keys = np.empty(2 * n)
-        for i in range(n):
-            keys[i] = pending.keys[i]
-        pending = Pending(keys, grown_rows(pending.pairs, n), pending.size)
+    if n + extra <= pending.keys.shape[0]:
+        return pending
+    cap = max(2 * pending.keys.shape[0], n + extra)
+    keys = np.empty(cap)
+    pairs = np.empty((cap, 2), np.int64)
+    for i in range(n):
+        keys[i] = pending.keys[i]
+        pairs[i, 0] = pending.pairs[i, 0]
+        pairs[i, 1] = pending.pairs[i, 1]
+    return Pending(keys, pairs, pending.size)
+
+
+@njit_borrowing
+def heap_insert(pending, key, tri_a, tri_b):
+    """Add (key, tri_a, tri_b) to a pending with room for it (pending_with_room)."""
+    n = pending.size[0]
     pending.keys[n] = key
     pending.pairs[n, 0] = tri_a
     pending.pairs[n, 1] = tri_b
@@ -290,7 +321,6 @@ def pending_push(pending, key, tri_a, tri_b):
     while i > 0 and _heap_before(pending, i, (i - 1) // 2):
         _swap(pending, i, (i - 1) // 2)
         i = (i - 1) // 2
-    return pending
 
 
 @njit_borrowing
@@ -357,7 +387,7 @@ def stable_order(keys):
 #: and end (9-17), moving_box (18-32), deviation bound (33)
 _SIDE_BOX = 18
 _SIDE_DEV = 33
-_SIDE_WIDTH = 34
+SIDE_WIDTH = 34
 
 
 @njit_borrowing

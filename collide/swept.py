@@ -82,10 +82,15 @@ from .broad import (
     RULE_SWEPT_RIGID,
     abs_rotation,
     leaf_pair_windows,
+    leaves_apart_along_normals,
     node_box,
+    opens_a,
     oriented_boxes_overlap,
     overlapping_leaves,
     relative_pose,
+    rigid_deviations,
+    rigid_pair_window,
+    rigid_placed_node,
     sweep_and_prune,
     with_room,
 )
@@ -101,7 +106,6 @@ from .discrete import (
     append_hit,
     frame_test,
     key_row,
-    object_margin,
     object_margins,
     object_world_boxes,
     pair_leaves,
@@ -117,17 +121,21 @@ from .motion import (
     SCREW,
     ball_deviation,
     pose_at,
+    rotation_magnitudes,
     screw_motion,
     sphere_deviation,
     step_motions,
     substeps,
 )
 from .narrow import (
+    SIDE_WIDTH,
     append_row,
     candidate_contact,
     candidates_contact_window,
     comes_first,
+    heap_insert,
     intersecting_triangles,
+    leaf_pair_candidates,
     new_pending,
     new_stamps,
     pending_first_key,
@@ -135,12 +143,14 @@ from .narrow import (
     pending_pop,
     pending_push,
     pending_size,
+    pending_with_room,
     stamp_is,
     swept_candidates,
     triangle_pair_count,
 )
-from .packed import to_world
+from .packed import NO_LEAF_BOXES, to_world
 from .rows import (
+    COUNT_LEAF_PAIRS,
     COUNT_NODE_PAIRS,
     COUNT_OBJECT_PAIRS,
     COUNT_SUBSTEPS,
@@ -660,7 +670,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
     always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window).
     probed_faces: config.PROBED_FACES (under screw motion without sub-steps, between big
-    meshes (probes_pair), a search for one end starts with probes, _probed_window, and a
+    meshes (big_pair), a search for one end is best first, _best_first_window, and a
     pair apart at the step's start gets a frame test at k + 1 of its own first, giving up
     after probe_leaf_pairs leaf pairs: then its frame test comes from the swept leaf
     pairs)."""
@@ -668,16 +678,15 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     hit_a = hit_b = -1
     n_sub = _pair_substeps(ps, rp0, motion, a, b)
     none = np.int64(-1)  # not a literal (see above _candidates)
-    if n_sub == 1 and rule == RULE_SWEPT_RIGID and probes_pair(ps, a, b, probed_faces):
+    if n_sub == 1 and rule == RULE_SWEPT_RIGID and big_pair(ps, a, b, probed_faces):
         if find_touch1 and not touch0:  # whether a contact begins: a frame test of its own, on a budget
             buffers, hit_a, hit_b = _probe_hit(ps, rp1, k + 1, a, b, static, state.frame, none, none, state.pair,
                                                buffers, counts, probe_leaf_pairs)
             touch1 = hit_a >= 0
             find_touch1 = not touch1  # given up: still unknown (the swept leaf pairs below tell)
         if touch0 != touch1:
-            buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static,
-                                                      np.bool_(touch0), pair_margin, time_tol, dist_tol,
-                                                      probe_leaf_pairs, state, buffers, counts)
+            buffers, t, tri_a, tri_b = _best_first_window(ps, rp0, rp1, motion, k, a, b, static, np.bool_(touch0),
+                                                          pair_margin, time_tol, dist_tol, state, buffers, counts)
             if touch0:
                 return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
@@ -701,8 +710,7 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
             touch1 = hit_a >= 0
         if touch0 != touch1:
             buffers, t, tri_a, tri_b = _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves,
-                                                         np.bool_(touch0), -np.inf if touch0 else np.inf, none,
-                                                         none, time_tol, dist_tol, state, buffers, counts)
+                                                         np.bool_(touch0), time_tol, dist_tol, state, buffers, counts)
             if touch0:
                 return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
@@ -731,22 +739,12 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
 
 
-#: Probes (frame tests at moments inside the step) that _probed_window spends on finding
-#: a moment near a one-sided contact's unknown end: the end is then known to within
-#: 2^-CONTACT_PROBES of the step.
-CONTACT_PROBES = 5
-#: A probe that looks near the pair the last one found gives up after this fraction of
-#: config.PROBE_LEAF_PAIRS: where that contact goes on, the first few leaf pairs touch;
-#: where it has ended, searching further afield costs more than the descent it could
-#: shorten (lift scenes of benchmarks/bench_meshsize.py, kernel time against probes on
-#: the full budget: 0.85-1.07x over four scenes).
-NEAR_PROBE_SHARE = 8
-
-
 @njit_borrowing
-def probes_pair(ps, a, b, probed_faces):
-    """Whether a search for one end of a contact of objects a and b starts with probes
-    (_probed_window): both of their meshes have at least probed_faces triangles."""
+def big_pair(ps, a, b, probed_faces):
+    """Whether both meshes of objects a and b have at least probed_faces triangles
+    (config.PROBED_FACES): under screw motion without sub-steps, a search for one end of
+    their contact is then best first (_best_first_window), and a frame test at a step's
+    end for them apart at its start gives up after a budget of leaf pairs (_probe_hit)."""
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
     return min(ps.face_start[mesh_a + 1] - ps.face_start[mesh_a],
@@ -762,76 +760,9 @@ def _pair_substeps(ps, rp0, motion, a, b):
                     _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
 
 
-@njit_borrowing
-def _probe_key(k, t):
-    """Stamp key (never a frame, -1 or -2) of the world vertices of step k at fraction t,
-    a multiple of 2^-CONTACT_PROBES strictly inside the step."""
-    scale = 1 << CONTACT_PROBES
-    return -3 - (k * scale + np.int64(t * scale))
-
-
-@njit(cache=True, inline="always")
-def _poses_at(ps, rp0, rp1, motion, static, o, t, out):
-    """Object o's pose at fraction t of the step into out (N, 3, 4) (motion.pose_at;
-    a static object's pose unchanged, bit for bit)."""
-    pose_at(motion[o], rp0[o], rp1[o], 0.0 if static[o] else t, out[o])
-
-
-@njit(cache=True)  # a call of its own: rare, and kept out of scan_intervals' code
-def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pair_margin, time_tol, dist_tol,
-                   probe_leaf_pairs, state, buffers, counts):
-    """_one_sided_window of objects a and b under screw motion (touching at the step's
-    start, backwards, or only at its end), from a descent over only the part of the step
-    where the answer can lie. CONTACT_PROBES frame tests at moments in between
-    (bisection: each probes the moment halfway between the latest (earliest) one found
-    touching and the first (last) one not found touching; a probe gives up after
-    probe_leaf_pairs leaf pairs, config.PROBE_LEAF_PAIRS, or an eighth of that when it
-    looks near a pair found before: NEAR_PROBE_SHARE) give a moment `known` at which
-    they touch; the contact ends (begins) no earlier (later) than that, so the swept
-    descent needs only cover [known, 1] ([0, known]): a screw motion of its own between
-    the poses there (as a sub-step: the same path). Each probe looks first near the
-    triangle pair the last one found; the first, in the descent's own order: what the
-    probes find depends on the scene only, not on which pair the frame tests found, so
-    neither chunks of steps nor --triangle-pairs change the answer. Returns
-    _one_sided_window's (buffers, t, tri_a, tri_b)."""
-    sub = state.sub
-    probe = state.probe
-    near_a = near_b = np.int64(-1)
-    known = 0.0 if backwards else 1.0  # the objects touch then
-    other = 1.0 - known                 # and do not then
-    for _ in range(CONTACT_PROBES):
-        mid = 0.5 * (known + other)
-        for o in (a, b):
-            _poses_at(ps, rp0, rp1, motion, static, o, mid, sub.pose0)
-            probe.margin[o] = object_margin(ps, sub.pose0, sub.pose0, o)
-        budget = probe_leaf_pairs // NEAR_PROBE_SHARE if near_a >= 0 else probe_leaf_pairs
-        buffers, hit_a, hit_b = _probe_hit(ps, sub.pose0, _probe_key(k, mid), a, b, static, probe, near_a, near_b,
-                                           state.pair, buffers, counts, budget)
-        if hit_a >= 0:
-            known = mid
-            near_a = hit_a
-            near_b = hit_b
-        else:
-            other = mid
-    t0 = known if backwards else 0.0
-    t1 = 1.0 if backwards else known
-    for o in (a, b):
-        _poses_at(ps, rp0, rp1, motion, static, o, t0, sub.pose0)
-        _poses_at(ps, rp0, rp1, motion, static, o, t1, sub.pose1)
-        screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # part of a turn below half
-    rule = np.int64(RULE_SWEPT_RIGID)  # not a literal (see above _candidates)
-    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, rule, pair_margin, state.pair,
-                                          buffers.stack, buffers.leaves, counts)
-    buffers = Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs)
-    if known == (0.0 if backwards else 1.0):  # no probe found a contact: the plain one-sided search
-        known = -np.inf if backwards else np.inf
-    return _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, known, near_a, near_b,
-                             time_tol, dist_tol, state, buffers, counts)
-
-
 @njit(cache=True)
-def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, known, known_a, known_b,
-                      time_tol, dist_tol, state, buffers, counts):
+def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, time_tol, dist_tol, state,
+                      buffers, counts):
     """The first contact of objects a and b during step k (backwards: the last), for a pair
     touching at the step's end (start), from the leaf pairs buffers.leaves[:n_leaves] of
     their swept descent: the answer of _search (narrow.candidates_contact_window with
@@ -841,12 +772,9 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     cannot move the contact found. Here the leaf pairs are opened in that order of their
     own windows (broad.leaf_pair_windows, which hold their triangle pairs'), and a
     triangle pair is tried once no unopened leaf pair can hold one that comes before it:
-    the same pairs are tried in the same order with the same limits. known: a moment the
-    objects are known to touch (_probed_window; triangle pair (known_a, known_b)), or inf
-    (backwards -inf) if none: the search starts from it, as if a triangle pair had been
-    found touching then (only contacts before it, backwards after it, are searched for).
-    Returns (buffers, t, tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none
-    touches; tri_a, tri_b forwards only."""
+    the same pairs are tried in the same order with the same limits. Returns (buffers, t,
+    tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none touches; tri_a, tri_b
+    forwards only."""
     leaves = buffers.leaves
     windows = leaf_pair_windows(ps.node_lo, ps.node_hi, rp0[a], rp1[a], rp0[b], rp1[b], motion[a], motion[b],
                                 dist_tol, leaves, n_leaves)
@@ -864,8 +792,7 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     work = ccd_work()
     face_a = ps.face_start[ps.object_mesh[a]]
     face_b = ps.face_start[ps.object_mesh[b]]
-    # forwards, a pair found touching at `known` itself replaces (known_a, known_b) (comes_first)
-    t = known if backwards else np.nextafter(known, np.inf)
+    t = -np.inf if backwards else np.inf
     best_a = best_b = -1
     tri_pairs = buffers.tri_pairs
     while True:
@@ -900,10 +827,157 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
         for r in range(n):
             pending = pending_push(pending, -tri_windows[r, 1] if backwards else tri_windows[r, 0], tri_pairs[r, 0],
                                    tri_pairs[r, 1])
-    if not backwards and best_a < 0 and known < np.inf:
-        t, best_a, best_b = known, known_a, known_b  # no certified search came earlier
     return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
+
+
+@njit(cache=True)  # a call of its own: rare, and kept out of scan_intervals' code
+def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_margin, time_tol, dist_tol, state,
+                       buffers, counts):
+    """_one_sided_window's answer for objects a and b under screw motion without sub-steps
+    (touching at the step's start, backwards, or only at its end), from a best-first
+    descent instead of a whole one: node pairs wait in a heap keyed by their window
+    (broad.rigid_pair_window: its start, backwards minus its end), triangle pairs in a
+    second one keyed by theirs (narrow.swept_candidates), and the smaller key is taken
+    next. A triangle pair is searched for its first (last) contact; a node pair is opened
+    into child pairs (leaf pairs into their triangle pairs), keeping only those whose
+    window reaches the contact found so far. Every contact of a node pair's triangles
+    lies in its window, so once the smallest key lies beyond the contact found, nothing
+    left can move it. Returns (buffers, t, tri_a, tri_b): t = inf (backwards -inf) and
+    (-1, -1) when none touches; tri_a, tri_b forwards only."""
+    lo, hi, first, count = ps.node_lo, ps.node_hi, ps.node_first, ps.node_count
+    scratch = state.pair
+    start_descent(ps, rp0, rp1, motion, a, b, scratch, buffers.stack)
+    counts[COUNT_OBJECT_PAIRS] += 1
+    pose = scratch.pose
+    rp_a0, rp_a1 = relative_pose(pose[2], pose[0]), relative_pose(pose[3], pose[1])  # A's nodes in B's frame
+    rp_b0, rp_b1 = relative_pose(pose[0], pose[2]), relative_pose(pose[1], pose[3])  # B's in A's
+    placing_a = (rp_a0, rp_a1, rotation_magnitudes(rp_a0), rotation_magnitudes(rp_a1))
+    placing_b = (rp_b0, rp_b1, rotation_magnitudes(rp_b0), rotation_magnitudes(rp_b1))
+    dev_a, dev_b = rigid_deviations(lo, hi, pose, scratch.motion, buffers.stack, np.int64(1))
+    margin_a = pair_margin + dev_a
+    margin_b = pair_margin + dev_b
+    shift_a = ps.leaf_box_shift[ps.object_mesh[a]]
+    shift_b = ps.leaf_box_shift[ps.object_mesh[b]]
+    boxes = shift_a != NO_LEAF_BOXES and shift_b != NO_LEAF_BOXES
+    nodes = new_pending()
+    pending = new_pending()
+    one = np.empty((1, 2), np.int64)
+    n_one = np.int64(1)  # not a literal (see above _candidates)
+    corners = np.empty((4, 3, 3))  # p0, p1, q0, q1
+    work = ccd_work()
+    face_a = ps.face_start[ps.object_mesh[a]]
+    face_b = ps.face_start[ps.object_mesh[b]]
+    # the arrays the loop reads, bound once (each read of a tuple's array field counts a reference)
+    faces, prim_ids, leaf_box = ps.faces, ps.prim_ids, ps.leaf_box
+    world0, world1, stamp0, stamp1 = state.world0, state.world1, state.stamp0, state.stamp1
+    motion_a, motion_b = motion[a], motion[b]
+    world_a, world_b = ps.world_start[a], ps.world_start[b]
+    found_pairs = np.empty((16, 2), np.int64)  # a leaf pair's triangle pairs (leaf_pair_candidates)
+    found_windows = np.empty((16, 2))
+    side_b = np.empty((4, SIDE_WIDTH))
+    t = -np.inf if backwards else np.inf
+    best_a = best_b = -1
+    root_a = ps.root[ps.object_mesh[a]]
+    root_b = ps.root[ps.object_mesh[b]]
+    key = _node_pair_key(rigid_placed_node(lo, hi, root_a, placing_a), rigid_placed_node(lo, hi, root_b, placing_b),
+                         margin_a, margin_b, backwards, t, counts)
+    if key < np.inf:
+        heap_insert(nodes, key, root_a, root_b)
+    na = nb = np.int64(-1)  # the node pair in hand (none: the next comes from the heaps)
+    while True:
+        bound = -t if backwards else t  # keys beyond it cannot move the contact found
+        if na < 0:
+            node_key = pending_first_key(nodes) if pending_size(nodes) > 0 else np.inf
+            if pending_size(pending) > 0 and pending_first_key(pending) < node_key:
+                key, tri_a, tri_b = pending_pop(pending)
+                if key > bound or (backwards and t == 1.0):
+                    break
+                found = candidate_contact(tri_a, tri_b, faces, face_a, face_b, world0, world1, world_a, world_b,
+                                          motion_a, motion_b, time_tol, dist_tol, t, backwards, corners, work, counts)
+                if backwards:
+                    t = max(t, found)
+                elif comes_first(found, tri_a, tri_b, t, best_a, best_b):
+                    t = found
+                    best_a = tri_a
+                    best_b = tri_b
+                continue
+            if node_key > bound or node_key == np.inf or (backwards and t == 1.0):
+                break  # nothing pending comes before it either
+            _, na, nb = pending_pop(nodes)
+        if count[na] == 0 or count[nb] == 0:
+            if pending_size(nodes) + 2 > nodes.keys.shape[0]:
+                nodes = pending_with_room(nodes, 2)
+            later = pending_first_key(pending) if pending_size(pending) > 0 else np.inf
+            na, nb = _open_node_pair(nodes, lo, hi, first, count, na, nb, placing_a, placing_b, margin_a, margin_b,
+                                     backwards, t, min(bound, later), counts)
+            continue
+        one[0, 0] = na
+        one[0, 1] = nb
+        na = nb = np.int64(-1)
+        if boxes and leaves_apart_along_normals(leaf_box, one[0, 0] + shift_a, one[0, 1] + shift_b, rp_a0, rp_a1,
+                                                rp_b0, rp_b1, margin_a, margin_b):
+            continue
+        counts[COUNT_LEAF_PAIRS] += 1
+        place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, n_one, stamp0, world0, stamp1, world1)
+        leaf_a, leaf_b = one[0, 0], one[0, 1]
+        if count[leaf_a] * count[leaf_b] > found_pairs.shape[0] or count[leaf_b] > side_b.shape[0]:
+            found_pairs = np.empty((count[leaf_a] * count[leaf_b], 2), np.int64)
+            found_windows = np.empty((count[leaf_a] * count[leaf_b], 2))
+            side_b = np.empty((count[leaf_b], SIDE_WIDTH))
+        # only the triangle pairs the search can still reach (as _one_sided_window)
+        n = leaf_pair_candidates(leaf_a, leaf_b, first, count, prim_ids, faces, face_a, face_b, world0, world1,
+                                 world_a, world_b, motion_a, motion_b, dist_tol, t if backwards else -np.inf,
+                                 np.inf if backwards else t, side_b, found_pairs, found_windows, np.int64(0), counts)
+        if pending_size(pending) + n > pending.keys.shape[0]:
+            pending = pending_with_room(pending, n)
+        for r in range(n):
+            heap_insert(pending, -found_windows[r, 1] if backwards else found_windows[r, 0], found_pairs[r, 0],
+                        found_pairs[r, 1])
+    return buffers, t, best_a, best_b
+
+
+@njit(cache=True, inline="always")
+def _node_pair_key(node_a, node_b, margin_a, margin_b, backwards, t, counts):
+    """_best_first_window's key of a node pair (broad.rigid_placed_node pairs): its
+    window's start (backwards minus its end; broad.rigid_pair_window), inf when the
+    window is empty or does not reach contact time t (backwards: ends before t;
+    forwards: starts after t)."""
+    counts[COUNT_NODE_PAIRS] += 1
+    t_lo, t_hi = rigid_pair_window(node_a, node_b, margin_a, margin_b)
+    if t_lo > t_hi or (t_hi < t if backwards else t_lo > t):
+        return np.inf
+    return -t_hi if backwards else t_lo
+
+
+@njit(cache=True, inline="always")
+def _open_node_pair(nodes, lo, hi, first, count, na, nb, placing_a, placing_b, margin_a, margin_b, backwards, t,
+                    limit, counts):
+    """Open node pair (na, nb) (at least one inner node; broad.opens_a says which) into
+    its two child pairs, keyed by _node_pair_key. The first of them (smaller key, then
+    smaller ids) is returned to be opened next when its key is at most ``limit`` (the
+    smallest key waiting elsewhere, and the search's bound), and the rest go into nodes
+    (a narrow.Pending with room for two); returns (-1, -1) when none is returned."""
+    if opens_a(count[na] > 0, count[nb] > 0, node_box(lo, hi, na), node_box(lo, hi, nb)):
+        kept = rigid_placed_node(lo, hi, nb, placing_b)
+        a0, b0, a1, b1 = first[na], nb, first[na] + 1, nb
+        key0 = _node_pair_key(rigid_placed_node(lo, hi, a0, placing_a), kept, margin_a, margin_b, backwards, t, counts)
+        key1 = _node_pair_key(rigid_placed_node(lo, hi, a1, placing_a), kept, margin_a, margin_b, backwards, t, counts)
+    else:
+        kept = rigid_placed_node(lo, hi, na, placing_a)
+        a0, b0, a1, b1 = na, first[nb], na, first[nb] + 1
+        key0 = _node_pair_key(kept, rigid_placed_node(lo, hi, b0, placing_b), margin_a, margin_b, backwards, t, counts)
+        key1 = _node_pair_key(kept, rigid_placed_node(lo, hi, b1, placing_b), margin_a, margin_b, backwards, t, counts)
+    if key1 < key0 or (key1 == key0 and (a1 < a0 or (a1 == a0 and b1 < b0))):
+        key0, a0, b0, key1, a1, b1 = key1, a1, b1, key0, a0, b0
+    if key1 < np.inf:
+        heap_insert(nodes, key1, a1, b1)
+    if key0 == np.inf:
+        return np.int64(-1), np.int64(-1)
+    if key0 <= limit and (pending_size(nodes) == 0 or key0 <= pending_first_key(nodes)):
+        return a0, b0
+    heap_insert(nodes, key0, a0, b0)
+    return np.int64(-1), np.int64(-1)
 
 @njit_borrowing
 def step_pair_key(k, a, b, n_objects):
@@ -929,7 +1003,6 @@ class Step(NamedTuple):
     sub: SubStep
     pair: object        #: discrete.PairScratch
     frame: FrameTests
-    probe: FrameTests   #: frame tests inside a step (_probed_window)
 
 
 @njit(cache=True)
@@ -939,7 +1012,7 @@ def _step_buffers(n_objects, n_world, find_frames):
     state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), new_stamps(n_world), new_stamps(n_world),
                  _sub_step_buffers(n_objects, n_world),
                  pair_scratch(),
-                 _frame_tests(n_objects, n_world if find_frames else 0), _frame_tests(n_objects, n_world))
+                 _frame_tests(n_objects, n_world if find_frames else 0))
     buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64),
                       np.empty((64, 2), np.int64))
     return state, buffers, np.zeros(COUNT_WIDTH, np.int64)
@@ -947,9 +1020,10 @@ def _step_buffers(n_objects, n_world, find_frames):
 
 @njit_entry
 def compile_contact_searches(ps, poses, static, time_tol, dist_tol):
-    """Compiles (and caches) the two searches for a contact's moment that scan_intervals
-    calls, _one_sided_window and narrow.candidates_contact_window (with the CCD below
-    them), with the argument types it calls them with, without running them: for
+    """Compiles (and caches) the three searches for a contact's moment that scan_intervals
+    calls, _one_sided_window, _best_first_window and narrow.candidates_contact_window
+    (with the CCD below them), with the argument types it calls them with, without
+    running them: for
     collide.warmup, so that another process can compile them while scan_intervals
     compiles the rest. Takes scan_intervals' ps, poses, static, time_tol and dist_tol;
     returns nothing."""
@@ -959,8 +1033,10 @@ def compile_contact_searches(ps, poses, static, time_tol, dist_tol):
     none = np.int64(-1)
     if n_objects >= 0:  # always: the calls below are compiled, never run
         return
-    _one_sided_window(ps, poses[0], poses[0], motion, none, none, none, static, none, np.bool_(True), np.inf, none,
-                      none, time_tol, dist_tol, state, buffers, counts)
+    _one_sided_window(ps, poses[0], poses[0], motion, none, none, none, static, none, np.bool_(True), time_tol,
+                      dist_tol, state, buffers, counts)
+    _best_first_window(ps, poses[0], poses[0], motion, none, none, none, static, np.bool_(True), time_tol, time_tol,
+                       dist_tol, state, buffers, counts)
     _search(ps, motion, state.world0, state.world1, none, none, buffers.tri_pairs, none, state.sub.motion,
             time_tol, dist_tol, np.bool_(True), np.bool_(True), counts)
 
@@ -1089,6 +1165,5 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         keys0, tris0 = keys1, tris1
         # frame k + 1 ends this step and starts the next: its world vertices move over
         # (swapping the buffers and their stamps), so no frame is transformed twice
-        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame,
-                     state.probe)
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame)
     return hits[:n_hits].copy(), ids[:n_rows].copy(), times[:n_rows].copy(), counts

@@ -93,7 +93,7 @@ def largest_coordinate(p_box, q_box):
     return max(p_box[12], p_box[13], p_box[14], q_box[12], q_box[13], q_box[14])
 
 
-@njit_borrowing
+@njit(cache=True, inline="always")  # part of its callers: a call per node pair costs more than the test
 def box_window(p_box, q_box, margin):
     """swept_window_of along x, y and z, from the triangles' moving_box tuples: (t_lo,
     t_hi), t_lo > t_hi when the boxes never come within margin of each other."""

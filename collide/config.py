@@ -60,24 +60,21 @@ SUBSTEP_DEVIATION_REL = 1e-3
 ONE_SIDED_LEAVES = 256
 
 #: A search for when a contact ends (or begins) between two objects whose meshes both
-#: have at least this many triangles, under screw motion, first probes moments inside
-#: the step with frame tests (a few cheap descents that stop at the first touching
-#: pair) and then descends only over the part of the step after the last moment found
-#: touching (before the first): a patch lifting off (landing) costs a descent of the
-#: few leaf pairs near where it lets go rather than of all those it sweeps over. The
-#: contact times found differ from the search without probes by at most the time
-#: tolerance. Triangles.
+#: have at least this many triangles, under screw motion, runs best first: node pairs
+#: are taken in the order their time windows reach toward the answer (the latest
+#: contact found so far, or the earliest), and the search stops once no window left can
+#: move it. A patch lifting off (landing) then costs the node pairs near where it lets
+#: go rather than a descent of all those it sweeps over. The contact found is certified
+#: like the whole search's (it may differ from it by at most the time tolerance).
+#: Triangles.
 PROBED_FACES = 4096
 
-#: Each probe gives up after this many leaf pairs without a touching triangle pair
-#: (one that looks near a pair an earlier probe found, after an eighth of them:
-#: swept.NEAR_PROBE_SHARE), then counts as if the objects did not touch: the answer
-#: stays right, only the descent after the probes covers more of the step. So does the
-#: frame test at a step's end of two such meshes apart at its start, which then takes
-#: the search without probes. A contact near the pair looked at first is usually found
-#: in the first few leaf pairs, while proving that nothing touches would take all the
-#: leaf pairs near the patch. Leaf pairs (0: every probe and such frame test gives up
-#: at once).
+#: The frame test at a step's end of two such meshes apart at its start (whether a
+#: contact begins in the step) gives up after this many leaf pairs without a touching
+#: triangle pair, and the pair then takes the search without it (its frame test from
+#: the swept leaf pairs): the answer stays right. A contact is usually found in the
+#: first few leaf pairs, while proving that nothing touches would take all the leaf
+#: pairs near the patch. Leaf pairs (0: every such frame test gives up at once).
 PROBE_LEAF_PAIRS = 64
 
 #: Linear-vertex interpolation: scan warns where the straight vertex paths depart

@@ -241,8 +241,9 @@ def leaf_pair_candidates(la, lb, first, count, prim_ids, faces, face_base_a, fac
     return n
 
 class Pending(NamedTuple):
-    """Triangle pairs waiting to be tried, first the smallest (key, tri_a, tri_b): a binary
-    heap (swept._one_sided_window). Grown by pending_push, which returns it."""
+    """Triangle pairs (or node pairs) waiting to be tried, first the smallest (key, tri_a,
+    tri_b): a binary heap (swept._one_sided_window, swept._best_first_window). Grown by
+    pending_push, which returns it, or pending_with_room before heap_insert."""
     keys: np.ndarray   #: float64 (cap,)
     pairs: np.ndarray  #: int64 (cap, 2): tri_a, tri_b
     size: np.ndarray   #: int64 (1,): rows in use

@@ -49,14 +49,14 @@ in the same order (_one_sided_window: the same contacts, bit for bit). A pair
 apart at the step's start then gets its frame test on the leaf pairs first, to
 know whether a contact begins.
 
-Between big meshes (config.PROBED_FACES) under screw motion, such a search first
-probes: frame tests at moments inside the step, halving the part of the step
-where the contact's end (beginning) can lie, each stopping at the first touching
-triangle pair, find a moment the objects touch; the swept descent then covers
-only the step after it (before it), where few leaf pairs come near
-(_probed_window; contact times move by at most the time tolerance). A pair of
-such meshes apart at the step's start gets its frame test first (one that gives
-up after config.PROBE_LEAF_PAIRS leaf pairs: then the search without probes).
+Between big meshes (config.PROBED_FACES) under screw motion, such a search runs
+best first instead (_best_first_window): no whole swept descent; node pairs wait in
+a heap keyed by their time windows (broad.rigid_pair_window), the one whose window
+reaches furthest toward the answer is opened first, and the search stops once no
+window left can move the contact found. A patch lifting off costs the node pairs
+near where it lets go. A pair of such meshes apart at the step's start gets its
+frame test first, on a budget (one that gives up after config.PROBE_LEAF_PAIRS leaf
+pairs: then the search above, its frame test from the swept leaf pairs).
 
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
@@ -834,9 +834,11 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
 @njit(cache=True)  # a call of its own: rare, and kept out of scan_intervals' code
 def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_margin, time_tol, dist_tol, state,
                        buffers, counts):
-    """_one_sided_window's answer for objects a and b under screw motion without sub-steps
-    (touching at the step's start, backwards, or only at its end), from a best-first
-    descent instead of a whole one: node pairs wait in a heap keyed by their window
+    """The first contact of objects a and b during step k (backwards: the last) under screw
+    motion without sub-steps, for a pair touching at the step's end (start), like
+    _one_sided_window but from a best-first descent instead of a whole one (the answer is
+    certified the same way: the two may differ by at most time_tol, and usually agree
+    bit for bit). Node pairs wait in a heap keyed by their window
     (broad.rigid_pair_window: its start, backwards minus its end), triangle pairs in a
     second one keyed by theirs (narrow.swept_candidates), and the smaller key is taken
     next. A triangle pair is searched for its first (last) contact; a node pair is opened
@@ -1059,9 +1061,10 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     time_tol in units of the step; dist_tol in length units; one_sided_leaves:
     config.ONE_SIDED_LEAVES (how large a search of one end of a contact reads its leaf
     pairs in time order; only affects speed); probed_faces: config.PROBED_FACES (how
-    large both meshes of a pair whose search of one end starts with probes; moves
-    contact times by at most time_tol); probe_leaf_pairs: config.PROBE_LEAF_PAIRS (when
-    a probe gives up; only affects speed). Returns (hits int64 (H,
+    large both meshes of a pair whose search of one end runs best first; moves contact
+    times by at most time_tol); probe_leaf_pairs: config.PROBE_LEAF_PAIRS (when the
+    frame test at a step's end of such a pair apart at its start gives up; only affects
+    speed). Returns (hits int64 (H,
     HIT_WIDTH), the frame tests' hits (none without find_frames; the first pair
     found, but the smallest at frame 0 when step_start is 0: a contact that begins
     there reports it without a search of its own, HIT_SMALLEST),

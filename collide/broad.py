@@ -766,16 +766,18 @@ def rigid_placed_node(lo, hi, node, placing):
 
 
 @njit(cache=True, inline="always")
-def rigid_pair_window(node_a, node_b, margin_a, margin_b):
+def rigid_pair_window(node_a, node_b, margin_a, margin_b, both=True):
     """When, within the step, a node of A and a node of B (rigid_placed_node pairs) can
     meet under RULE_SWEPT_RIGID's placements (swept_leaves'): (t_lo, t_hi), fractions of
     the step, t_lo > t_hi when never. In B's frame, each point of A's node at fraction t
     lies within margin_a (its deviation bound, rigid_frame_deviation, and the rounding
     margin) of the blend (1 - t) start box + t end box, and B's node stays put:
-    windows.box_window of the two. The same seen from A (margin_b), intersected. Where
-    swept_leaves finds two nodes apart, their window is empty."""
+    windows.box_window of the two. With ``both``, the same seen from A (margin_b),
+    intersected: then, where swept_leaves finds two nodes apart, their window is empty.
+    Without, the looser window seen from B alone (for inner node pairs, whose second
+    half costs more than it saves: swept._best_first_window)."""
     t_lo, t_hi = box_window(node_a[1], _still_node_box(node_b[0]), margin_a)
-    if t_lo > t_hi:
+    if t_lo > t_hi or not both:
         return t_lo, t_hi
     u_lo, u_hi = box_window(node_b[1], _still_node_box(node_a[0]), margin_b)
     return max(t_lo, u_lo), min(t_hi, u_hi)

@@ -261,6 +261,12 @@ def pending_size(pending):
 
 
 @njit_borrowing
+def pending_lacks_room(pending, extra):
+    """Whether pending has room for fewer than ``extra`` more rows (pending_with_room)."""
+    return pending.size[0] + extra > pending.keys.shape[0]
+
+
+@njit_borrowing
 def pending_first_key(pending):
     """The smallest key (pending not empty)."""
     return pending.keys[0]

@@ -139,6 +139,7 @@ from .narrow import (
     new_pending,
     new_stamps,
     pending_first_key,
+    pending_lacks_room,
     pending_of_keys,
     pending_pop,
     pending_push,
@@ -908,7 +909,7 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
                 break  # nothing pending comes before it either
             _, na, nb = pending_pop(nodes)
         if count[na] == 0 or count[nb] == 0:
-            if pending_size(nodes) + 2 > nodes.keys.shape[0]:
+            if pending_lacks_room(nodes, 2):
                 nodes = pending_with_room(nodes, 2)
             later = pending_first_key(pending) if pending_size(pending) > 0 else np.inf
             na, nb = _open_node_pair(nodes, lo, hi, first, count, na, nb, placing_a, placing_b, margin_a, margin_b,
@@ -931,7 +932,7 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
         n = leaf_pair_candidates(leaf_a, leaf_b, first, count, prim_ids, faces, face_a, face_b, world0, world1,
                                  world_a, world_b, motion_a, motion_b, dist_tol, t if backwards else -np.inf,
                                  np.inf if backwards else t, side_b, found_pairs, found_windows, np.int64(0), counts)
-        if pending_size(pending) + n > pending.keys.shape[0]:
+        if pending_lacks_room(pending, n):
             pending = pending_with_room(pending, n)
         for r in range(n):
             heap_insert(pending, -found_windows[r, 1] if backwards else found_windows[r, 0], found_pairs[r, 0],
@@ -940,13 +941,13 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
 
 
 @njit(cache=True, inline="always")
-def _node_pair_key(node_a, node_b, margin_a, margin_b, backwards, t, counts):
+def _node_pair_key(node_a, node_b, margin_a, margin_b, backwards, t, counts, both=True):
     """_best_first_window's key of a node pair (broad.rigid_placed_node pairs): its
-    window's start (backwards minus its end; broad.rigid_pair_window), inf when the
-    window is empty or does not reach contact time t (backwards: ends before t;
-    forwards: starts after t)."""
+    window's start (backwards minus its end; broad.rigid_pair_window, seen from both
+    sides when ``both``: leaf pairs), inf when the window is empty or does not reach
+    contact time t (backwards: ends before t; forwards: starts after t)."""
     counts[COUNT_NODE_PAIRS] += 1
-    t_lo, t_hi = rigid_pair_window(node_a, node_b, margin_a, margin_b)
+    t_lo, t_hi = rigid_pair_window(node_a, node_b, margin_a, margin_b, both)
     if t_lo > t_hi or (t_hi < t if backwards else t_lo > t):
         return np.inf
     return -t_hi if backwards else t_lo
@@ -963,13 +964,17 @@ def _open_node_pair(nodes, lo, hi, first, count, na, nb, placing_a, placing_b, m
     if opens_a(count[na] > 0, count[nb] > 0, node_box(lo, hi, na), node_box(lo, hi, nb)):
         kept = rigid_placed_node(lo, hi, nb, placing_b)
         a0, b0, a1, b1 = first[na], nb, first[na] + 1, nb
-        key0 = _node_pair_key(rigid_placed_node(lo, hi, a0, placing_a), kept, margin_a, margin_b, backwards, t, counts)
-        key1 = _node_pair_key(rigid_placed_node(lo, hi, a1, placing_a), kept, margin_a, margin_b, backwards, t, counts)
+        key0 = _node_pair_key(rigid_placed_node(lo, hi, a0, placing_a), kept, margin_a, margin_b, backwards, t, counts,
+                              count[a0] > 0 and count[b0] > 0)
+        key1 = _node_pair_key(rigid_placed_node(lo, hi, a1, placing_a), kept, margin_a, margin_b, backwards, t, counts,
+                              count[a1] > 0 and count[b1] > 0)
     else:
         kept = rigid_placed_node(lo, hi, na, placing_a)
         a0, b0, a1, b1 = na, first[nb], na, first[nb] + 1
-        key0 = _node_pair_key(kept, rigid_placed_node(lo, hi, b0, placing_b), margin_a, margin_b, backwards, t, counts)
-        key1 = _node_pair_key(kept, rigid_placed_node(lo, hi, b1, placing_b), margin_a, margin_b, backwards, t, counts)
+        key0 = _node_pair_key(kept, rigid_placed_node(lo, hi, b0, placing_b), margin_a, margin_b, backwards, t, counts,
+                              count[a0] > 0 and count[b0] > 0)
+        key1 = _node_pair_key(kept, rigid_placed_node(lo, hi, b1, placing_b), margin_a, margin_b, backwards, t, counts,
+                              count[a1] > 0 and count[b1] > 0)
     if key1 < key0 or (key1 == key0 and (a1 < a0 or (a1 == a0 and b1 < b0))):
         key0, a0, b0, key1, a1, b1 = key1, a1, b1, key0, a0, b0
     if key1 < np.inf:
@@ -980,6 +985,7 @@ def _open_node_pair(nodes, lo, hi, first, count, na, nb, placing_a, placing_b, m
         return a0, b0
     heap_insert(nodes, key0, a0, b0)
     return np.int64(-1), np.int64(-1)
+
 
 @njit_borrowing
 def step_pair_key(k, a, b, n_objects):

@@ -461,8 +461,9 @@ def test_node_pair_window_holds_every_moment_the_boxes_meet(angle):
     """broad.rigid_pair_window (the key of the best-first search for when a contact ends
     or begins) against the exact screw motion (scipy) sampled at 401 moments: two boxes
     passing each other while each turns by up to ``angle`` radians; at every moment their
-    placed boxes overlap (separating axis test), the moment lies in the window. The
-    window is not just the whole step: in most cases where the boxes meet only part of
+    placed boxes overlap (separating axis test), the moment lies in the window, and in
+    the looser window seen from one side only (what inner node pairs get). The window
+    is not just the whole step: in most cases where the boxes meet only part of
     the time it leaves out some of the moments they are apart."""
     from collide.broad import relative_pose, rigid_deviations, rigid_pair_window, rigid_placed_node
     from collide.motion import rotation_magnitudes
@@ -488,14 +489,16 @@ def test_node_pair_window_holds_every_moment_the_boxes_meet(angle):
         for ends in (((pose[2], pose[0]), (pose[3], pose[1])), ((pose[0], pose[2]), (pose[1], pose[3]))):
             start, end = relative_pose(*ends[0]), relative_pose(*ends[1])
             placings.append((start, end, rotation_magnitudes(start), rotation_magnitudes(end)))
-        t_lo, t_hi = rigid_pair_window(rigid_placed_node(lo, hi, 0, placings[0]),
-                                       rigid_placed_node(lo, hi, 1, placings[1]), dev_a, dev_b)
+        nodes = rigid_placed_node(lo, hi, 0, placings[0]), rigid_placed_node(lo, hi, 1, placings[1])
+        t_lo, t_hi = rigid_pair_window(*nodes, dev_a, dev_b)
+        seen_from_b = rigid_pair_window(*nodes, dev_a, dev_b, False)  # one side only (inner nodes): looser
+        assert seen_from_b[0] <= t_lo and t_hi <= seen_from_b[1] or t_lo > t_hi
         twists = [np.real(scipy_linalg.logm(e @ np.linalg.inv(s))) for s, e in ((a0, a1), (b0, b1))]
         meets = np.array([_boxes_overlap(scipy_linalg.expm(t * twists[0]) @ a0, scipy_linalg.expm(t * twists[1]) @ b0,
                                          (lo[0], hi[0]), (lo[1], hi[1])) for t in samples])
         if meets.any():
-            assert t_lo <= t_hi
-            assert t_lo <= samples[meets].min() + 1e-9 and samples[meets].max() - 1e-9 <= t_hi, (t_lo, t_hi)
+            for lo_t, hi_t in ((t_lo, t_hi), seen_from_b):
+                assert lo_t <= samples[meets].min() + 1e-9 and samples[meets].max() - 1e-9 <= hi_t, (lo_t, hi_t)
         if 0 < meets.sum() < samples.size:
             meeting += 1
             narrowed += t_lo > 0.0 or t_hi < 1.0

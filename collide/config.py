@@ -60,21 +60,27 @@ SUBSTEP_DEVIATION_REL = 1e-3
 ONE_SIDED_LEAVES = 256
 
 #: A search for when a contact ends (or begins) between two objects whose meshes both
-#: have at least this many triangles, under screw motion, runs best first: node pairs
-#: are taken in the order their time windows reach toward the answer (the latest
-#: contact found so far, or the earliest), and the search stops once no window left can
-#: move it. A patch lifting off (landing) then costs the node pairs near where it lets
-#: go rather than a descent of all those it sweeps over. The contact found is certified
-#: like the whole search's (it may differ from it by at most the time tolerance).
-#: Triangles.
+#: have at least this many triangles, under screw motion, does not descend both BVHs
+#: over the whole step (a patch lifting off or landing reaches every leaf pair it sweeps
+#: over). Meshes with oriented leaf boxes (LEAF_BOX_TRIANGLES) first probe moments
+#: inside the step with frame tests (a few cheap descents that stop at the first
+#: touching pair) and then descend only over the part of the step after the last moment
+#: found touching (before the first). Bigger meshes search best first: node pairs are
+#: taken in the order their time windows reach toward the answer, and the search stops
+#: once no window left can move the contact found. Either way the contact found is
+#: certified like the whole search's (it may differ from it by at most the time
+#: tolerance). Triangles.
 PROBED_FACES = 4096
 
-#: The frame test at a step's end of two such meshes apart at its start (whether a
-#: contact begins in the step) gives up after this many leaf pairs without a touching
-#: triangle pair, and the pair then takes the search without it (its frame test from
-#: the swept leaf pairs): the answer stays right. A contact is usually found in the
+#: Each probe, and the frame test at a step's end of two such meshes apart at its start
+#: (whether a contact begins in the step), gives up after this many leaf pairs without
+#: a touching triangle pair (a probe that looks near a pair an earlier probe found, after
+#: an eighth of them: swept.NEAR_PROBE_SHARE). A probe that gives up counts as if the
+#: objects did not touch, and such a frame test leaves the pair to the search without
+#: it (its frame test from the swept leaf pairs): the answer stays right, only more of
+#: the step is searched. A contact near the pair looked at first is usually found in the
 #: first few leaf pairs, while proving that nothing touches would take all the leaf
-#: pairs near the patch. Leaf pairs (0: every such frame test gives up at once).
+#: pairs near the patch. Leaf pairs (0: every probe and such frame test gives up at once).
 PROBE_LEAF_PAIRS = 64
 
 #: Linear-vertex interpolation: scan warns where the straight vertex paths depart

@@ -49,14 +49,20 @@ in the same order (_one_sided_window: the same contacts, bit for bit). A pair
 apart at the step's start then gets its frame test on the leaf pairs first, to
 know whether a contact begins.
 
-Between big meshes (config.PROBED_FACES) under screw motion, such a search runs
-best first instead (_best_first_window): no whole swept descent; node pairs wait in
-a heap keyed by their time windows (broad.rigid_pair_window), the one whose window
-reaches furthest toward the answer is opened first, and the search stops once no
-window left can move the contact found. A patch lifting off costs the node pairs
-near where it lets go. A pair of such meshes apart at the step's start gets its
-frame test first, on a budget (one that gives up after config.PROBE_LEAF_PAIRS leaf
-pairs: then the search above, its frame test from the swept leaf pairs).
+Between big meshes (config.PROBED_FACES) under screw motion, such a search avoids
+the whole swept descent. Meshes with leaf boxes (config.LEAF_BOX_TRIANGLES) first
+probe: frame tests at moments inside the step, halving the part of the step where
+the contact's end (beginning) can lie, each stopping at the first touching
+triangle pair, find a moment the objects touch; the swept descent then covers
+only the step after it (before it), where few leaf pairs come near
+(_probed_window). Bigger meshes search best first (_best_first_window): node pairs
+wait in a heap keyed by their time windows (broad.rigid_pair_window), the one
+whose window reaches furthest toward the answer is opened first, and the search
+stops once no window left can move the contact found. Contact times move by at
+most the time tolerance either way. A pair of such meshes apart at the step's start
+gets its frame test first, on a budget (one that gives up after
+config.PROBE_LEAF_PAIRS leaf pairs: then the search above, its frame test from the
+swept leaf pairs).
 
 Objects that turn a lot in one step sweep large volumes, and boxes around a
 whole step's arc are loose; for such a pair steps 3 and 4 run on equal
@@ -106,6 +112,7 @@ from .discrete import (
     append_hit,
     frame_test,
     key_row,
+    object_margin,
     object_margins,
     object_world_boxes,
     pair_leaves,
@@ -671,7 +678,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     motion, RULE_SWEPT under linear-vertex motion); sub-steps (screw motion only) are
     always rigid. one_sided_leaves: config.ONE_SIDED_LEAVES (_one_sided_window).
     probed_faces: config.PROBED_FACES (under screw motion without sub-steps, between big
-    meshes (big_pair), a search for one end is best first, _best_first_window, and a
+    meshes (big_pair), a search for one end starts with probes, _probed_window, when both
+    have leaf boxes (leaf_boxed_pair), else is best first, _best_first_window; and a
     pair apart at the step's start gets a frame test at k + 1 of its own first, giving up
     after probe_leaf_pairs leaf pairs: then its frame test comes from the swept leaf
     pairs)."""
@@ -686,8 +694,14 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
             touch1 = hit_a >= 0
             find_touch1 = not touch1  # given up: still unknown (the swept leaf pairs below tell)
         if touch0 != touch1:
-            buffers, t, tri_a, tri_b = _best_first_window(ps, rp0, rp1, motion, k, a, b, static, np.bool_(touch0),
-                                                          pair_margin, time_tol, dist_tol, state, buffers, counts)
+            if leaf_boxed_pair(ps, a, b):
+                buffers, t, tri_a, tri_b = _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static,
+                                                          np.bool_(touch0), pair_margin, time_tol, dist_tol,
+                                                          probe_leaf_pairs, state, buffers, counts)
+            else:
+                buffers, t, tri_a, tri_b = _best_first_window(ps, rp0, rp1, motion, k, a, b, static,
+                                                              np.bool_(touch0), pair_margin, time_tol, dist_tol,
+                                                              state, buffers, counts)
             if touch0:
                 return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
@@ -711,7 +725,8 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
             touch1 = hit_a >= 0
         if touch0 != touch1:
             buffers, t, tri_a, tri_b = _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves,
-                                                         np.bool_(touch0), time_tol, dist_tol, state, buffers, counts)
+                                                         np.bool_(touch0), -np.inf if touch0 else np.inf, none,
+                                                         none, time_tol, dist_tol, state, buffers, counts)
             if touch0:
                 return buffers, 0.0, max(t, 0.0), tri_a, tri_b, hit_a, hit_b
             return buffers, min(t, 1.0), 1.0, tri_a, tri_b, hit_a, hit_b
@@ -740,16 +755,39 @@ def _pair_window(ps, rp0, rp1, motion, margin, k, a, b, static, rule, time_tol, 
     return buffers, t_first, t_last, tri_a, tri_b, hit_a, hit_b
 
 
+#: Probes (frame tests at moments inside the step) that _probed_window spends on finding
+#: a moment near a one-sided contact's unknown end: the end is then known to within
+#: 2^-CONTACT_PROBES of the step.
+CONTACT_PROBES = 5
+#: A probe that looks near the pair the last one found gives up after this fraction of
+#: config.PROBE_LEAF_PAIRS: where that contact goes on, the first few leaf pairs touch;
+#: where it has ended, searching further afield costs more than the descent it could
+#: shorten (lift scenes of benchmarks/bench_meshsize.py, kernel time against probes on
+#: the full budget: 0.85-1.07x over four scenes).
+NEAR_PROBE_SHARE = 8
+
+
 @njit_borrowing
 def big_pair(ps, a, b, probed_faces):
     """Whether both meshes of objects a and b have at least probed_faces triangles
     (config.PROBED_FACES): under screw motion without sub-steps, a search for one end of
-    their contact is then best first (_best_first_window), and a frame test at a step's
-    end for them apart at its start gives up after a budget of leaf pairs (_probe_hit)."""
+    their contact then starts with probes (_probed_window) or is best first
+    (_best_first_window; leaf_boxed_pair says which), and a frame test at a step's end
+    for them apart at its start gives up after a budget of leaf pairs (_probe_hit)."""
     mesh_a = ps.object_mesh[a]
     mesh_b = ps.object_mesh[b]
     return min(ps.face_start[mesh_a + 1] - ps.face_start[mesh_a],
                ps.face_start[mesh_b + 1] - ps.face_start[mesh_b]) >= probed_faces
+
+
+@njit_borrowing
+def leaf_boxed_pair(ps, a, b):
+    """Whether both meshes of objects a and b have oriented leaf boxes
+    (config.LEAF_BOX_TRIANGLES): then a search for one end of their contact between big
+    meshes starts with probes (_probed_window), else it runs best first
+    (_best_first_window)."""
+    return (ps.leaf_box_shift[ps.object_mesh[a]] != NO_LEAF_BOXES
+            and ps.leaf_box_shift[ps.object_mesh[b]] != NO_LEAF_BOXES)
 
 
 @njit_borrowing
@@ -761,9 +799,76 @@ def _pair_substeps(ps, rp0, motion, a, b):
                     _world_centre(ps.centre, mesh_b, rp0, b), ps.sphere_radius[mesh_b])
 
 
+@njit_borrowing
+def _probe_key(k, t):
+    """Stamp key (never a frame, -1 or -2) of the world vertices of step k at fraction t,
+    a multiple of 2^-CONTACT_PROBES strictly inside the step."""
+    scale = 1 << CONTACT_PROBES
+    return -3 - (k * scale + np.int64(t * scale))
+
+
+@njit(cache=True, inline="always")
+def _poses_at(ps, rp0, rp1, motion, static, o, t, out):
+    """Object o's pose at fraction t of the step into out (N, 3, 4) (motion.pose_at;
+    a static object's pose unchanged, bit for bit)."""
+    pose_at(motion[o], rp0[o], rp1[o], 0.0 if static[o] else t, out[o])
+
+
+@njit(cache=True)  # a call of its own: rare, and kept out of scan_intervals' code
+def _probed_window(ps, rp0, rp1, motion, margin, k, a, b, static, backwards, pair_margin, time_tol, dist_tol,
+                   probe_leaf_pairs, state, buffers, counts):
+    """_one_sided_window of objects a and b under screw motion (touching at the step's
+    start, backwards, or only at its end), from a descent over only the part of the step
+    where the answer can lie. CONTACT_PROBES frame tests at moments in between
+    (bisection: each probes the moment halfway between the latest (earliest) one found
+    touching and the first (last) one not found touching; a probe gives up after
+    probe_leaf_pairs leaf pairs, config.PROBE_LEAF_PAIRS, or an eighth of that when it
+    looks near a pair found before: NEAR_PROBE_SHARE) give a moment `known` at which
+    they touch; the contact ends (begins) no earlier (later) than that, so the swept
+    descent needs only cover [known, 1] ([0, known]): a screw motion of its own between
+    the poses there (as a sub-step: the same path). Each probe looks first near the
+    triangle pair the last one found; the first, in the descent's own order: what the
+    probes find depends on the scene only, not on which pair the frame tests found, so
+    neither chunks of steps nor --triangle-pairs change the answer. Returns
+    _one_sided_window's (buffers, t, tri_a, tri_b)."""
+    sub = state.sub
+    probe = state.probe
+    near_a = near_b = np.int64(-1)
+    known = 0.0 if backwards else 1.0  # the objects touch then
+    other = 1.0 - known                 # and do not then
+    for _ in range(CONTACT_PROBES):
+        mid = 0.5 * (known + other)
+        for o in (a, b):
+            _poses_at(ps, rp0, rp1, motion, static, o, mid, sub.pose0)
+            probe.margin[o] = object_margin(ps, sub.pose0, sub.pose0, o)
+        budget = probe_leaf_pairs // NEAR_PROBE_SHARE if near_a >= 0 else probe_leaf_pairs
+        buffers, hit_a, hit_b = _probe_hit(ps, sub.pose0, _probe_key(k, mid), a, b, static, probe, near_a, near_b,
+                                           state.pair, buffers, counts, budget)
+        if hit_a >= 0:
+            known = mid
+            near_a = hit_a
+            near_b = hit_b
+        else:
+            other = mid
+    t0 = known if backwards else 0.0
+    t1 = 1.0 if backwards else known
+    for o in (a, b):
+        _poses_at(ps, rp0, rp1, motion, static, o, t0, sub.pose0)
+        _poses_at(ps, rp0, rp1, motion, static, o, t1, sub.pose1)
+        screw_motion(sub.pose0[o], sub.pose1[o], margin[o], sub.motion[o])  # part of a turn below half
+    rule = np.int64(RULE_SWEPT_RIGID)  # not a literal (see above _candidates)
+    stack, leaves, n_leaves = pair_leaves(ps, sub.pose0, sub.pose1, sub.motion, a, b, rule, pair_margin, state.pair,
+                                          buffers.stack, buffers.leaves, counts)
+    buffers = Buffers(stack, leaves, buffers.tri_pairs, buffers.frame_pairs)
+    if known == (0.0 if backwards else 1.0):  # no probe found a contact: the plain one-sided search
+        known = -np.inf if backwards else np.inf
+    return _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, known, near_a, near_b,
+                             time_tol, dist_tol, state, buffers, counts)
+
+
 @njit(cache=True)
-def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, time_tol, dist_tol, state,
-                      buffers, counts):
+def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards, known, known_a, known_b,
+                      time_tol, dist_tol, state, buffers, counts):
     """The first contact of objects a and b during step k (backwards: the last), for a pair
     touching at the step's end (start), from the leaf pairs buffers.leaves[:n_leaves] of
     their swept descent: the answer of _search (narrow.candidates_contact_window with
@@ -773,9 +878,12 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     cannot move the contact found. Here the leaf pairs are opened in that order of their
     own windows (broad.leaf_pair_windows, which hold their triangle pairs'), and a
     triangle pair is tried once no unopened leaf pair can hold one that comes before it:
-    the same pairs are tried in the same order with the same limits. Returns (buffers, t,
-    tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none touches; tri_a, tri_b
-    forwards only."""
+    the same pairs are tried in the same order with the same limits. known: a moment the
+    objects are known to touch (_probed_window; triangle pair (known_a, known_b)), or inf
+    (backwards -inf) if none: the search starts from it, as if a triangle pair had been
+    found touching then (only contacts before it, backwards after it, are searched for).
+    Returns (buffers, t, tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none
+    touches; tri_a, tri_b forwards only."""
     leaves = buffers.leaves
     windows = leaf_pair_windows(ps.node_lo, ps.node_hi, rp0[a], rp1[a], rp0[b], rp1[b], motion[a], motion[b],
                                 dist_tol, leaves, n_leaves)
@@ -793,7 +901,8 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     work = ccd_work()
     face_a = ps.face_start[ps.object_mesh[a]]
     face_b = ps.face_start[ps.object_mesh[b]]
-    t = -np.inf if backwards else np.inf
+    # forwards, a pair found touching at `known` itself replaces (known_a, known_b) (comes_first)
+    t = known if backwards else np.nextafter(known, np.inf)
     best_a = best_b = -1
     tri_pairs = buffers.tri_pairs
     while True:
@@ -828,6 +937,8 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
         for r in range(n):
             pending = pending_push(pending, -tri_windows[r, 1] if backwards else tri_windows[r, 0], tri_pairs[r, 0],
                                    tri_pairs[r, 1])
+    if not backwards and best_a < 0 and known < np.inf:
+        t, best_a, best_b = known, known_a, known_b  # no certified search came earlier
     return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
 
@@ -1011,6 +1122,7 @@ class Step(NamedTuple):
     sub: SubStep
     pair: object        #: discrete.PairScratch
     frame: FrameTests
+    probe: FrameTests   #: frame tests inside a step (_probed_window)
 
 
 @njit(cache=True)
@@ -1020,7 +1132,7 @@ def _step_buffers(n_objects, n_world, find_frames):
     state = Step(np.empty((n_world, 3)), np.empty((n_world, 3)), new_stamps(n_world), new_stamps(n_world),
                  _sub_step_buffers(n_objects, n_world),
                  pair_scratch(),
-                 _frame_tests(n_objects, n_world if find_frames else 0))
+                 _frame_tests(n_objects, n_world if find_frames else 0), _frame_tests(n_objects, n_world))
     buffers = Buffers(np.empty((64, 2), np.int64), np.empty((256, 2), np.int64), np.empty((64, 2), np.int64),
                       np.empty((64, 2), np.int64))
     return state, buffers, np.zeros(COUNT_WIDTH, np.int64)
@@ -1041,8 +1153,8 @@ def compile_contact_searches(ps, poses, static, time_tol, dist_tol):
     none = np.int64(-1)
     if n_objects >= 0:  # always: the calls below are compiled, never run
         return
-    _one_sided_window(ps, poses[0], poses[0], motion, none, none, none, static, none, np.bool_(True), time_tol,
-                      dist_tol, state, buffers, counts)
+    _one_sided_window(ps, poses[0], poses[0], motion, none, none, none, static, none, np.bool_(True), np.inf, none,
+                      none, time_tol, dist_tol, state, buffers, counts)
     _best_first_window(ps, poses[0], poses[0], motion, none, none, none, static, np.bool_(True), time_tol, time_tol,
                        dist_tol, state, buffers, counts)
     _search(ps, motion, state.world0, state.world1, none, none, buffers.tri_pairs, none, state.sub.motion,
@@ -1067,10 +1179,10 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     time_tol in units of the step; dist_tol in length units; one_sided_leaves:
     config.ONE_SIDED_LEAVES (how large a search of one end of a contact reads its leaf
     pairs in time order; only affects speed); probed_faces: config.PROBED_FACES (how
-    large both meshes of a pair whose search of one end runs best first; moves contact
-    times by at most time_tol); probe_leaf_pairs: config.PROBE_LEAF_PAIRS (when the
-    frame test at a step's end of such a pair apart at its start gives up; only affects
-    speed). Returns (hits int64 (H,
+    large both meshes of a pair whose search of one end starts with probes or runs best
+    first; moves contact times by at most time_tol); probe_leaf_pairs:
+    config.PROBE_LEAF_PAIRS (when a probe, or the frame test at a step's end of such a
+    pair apart at its start, gives up; only affects speed). Returns (hits int64 (H,
     HIT_WIDTH), the frame tests' hits (none without find_frames; the first pair
     found, but the smallest at frame 0 when step_start is 0: a contact that begins
     there reports it without a search of its own, HIT_SMALLEST),
@@ -1174,5 +1286,6 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
         keys0, tris0 = keys1, tris1
         # frame k + 1 ends this step and starts the next: its world vertices move over
         # (swapping the buffers and their stamps), so no frame is transformed twice
-        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame)
+        state = Step(state.world1, state.world0, state.stamp1, state.stamp0, state.sub, state.pair, state.frame,
+                     state.probe)
     return hits[:n_hits].copy(), ids[:n_rows].copy(), times[:n_rows].copy(), counts

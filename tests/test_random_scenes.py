@@ -220,21 +220,25 @@ def test_discrete_scan_matches_exact_brute_force(seeds):
 
 
 @pytest.mark.parametrize("interpolation, search", [("screw", "searches-at-once"), ("screw", "one-sided-in-time-order"),
-                                                   ("screw", "best-first"), ("linear-vertex", "searches-at-once"),
+                                                   ("screw", "probed"), ("screw", "best-first"),
+                                                   ("linear-vertex", "searches-at-once"),
                                                    ("linear-vertex", "one-sided-in-time-order")])
 @pytest.mark.parametrize("seeds", seed_blocks(2, 2, 250))
 def test_continuous_scan_holds_every_sampled_contact(seeds, interpolation, search, monkeypatch):
     """Every contact of the motion sampled 30 times per step lies in a reported interval,
     and so does every frame contact; where an interval begins its pair touches (python-fcl's
     distance). Searches of one end of a contact: all candidates at once, in time order
-    however few leaf pairs (config.ONE_SIDED_LEAVES = 0), or best first however small the
-    meshes (config.PROBED_FACES = 0; screw motion only)."""
+    however few leaf pairs (config.ONE_SIDED_LEAVES = 0), or, however small the meshes
+    (config.PROBED_FACES = 0; screw motion only), starting with probes (meshes with leaf
+    boxes) or best first (none: config.LEAF_BOX_TRIANGLES = 0)."""
     fcl = pytest.importorskip("fcl")
     pytest.importorskip("scipy")
     if search == "one-sided-in-time-order":
         monkeypatch.setattr(config, "ONE_SIDED_LEAVES", 0)
-    elif search == "best-first":
+    elif search in ("probed", "best-first"):
         monkeypatch.setattr(config, "PROBED_FACES", 0)
+        if search == "best-first":
+            monkeypatch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
     sampled_total = 0
     for seed in seeds:
         rng = np.random.default_rng(seed)

@@ -909,18 +909,11 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
         bound = -t if backwards else t  # keys beyond it cannot move the contact found
         leaf_key = pending_first_key(unopened) if pending_size(unopened) > 0 else np.inf
         if pending_size(pending) > 0 and pending_first_key(pending) < leaf_key:
-            key, tri_a, tri_b = pending_pop(pending)
-            if key > bound or (backwards and t == 1.0):
+            done, t, best_a, best_b = _try_next_triangle_pair(
+                pending, bound, t, best_a, best_b, backwards, ps.faces, face_a, face_b, state.world0, state.world1,
+                ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol, dist_tol, corners, work, counts)
+            if done:
                 break
-            found = candidate_contact(tri_a, tri_b, ps.faces, face_a, face_b, state.world0, state.world1,
-                                      ps.world_start[a], ps.world_start[b], motion[a], motion[b], time_tol,
-                                      dist_tol, t, backwards, corners, work, counts)
-            if backwards:
-                t = max(t, found)
-            elif comes_first(found, tri_a, tri_b, t, best_a, best_b):
-                t = found
-                best_a = tri_a
-                best_b = tri_b
             continue
         if leaf_key > bound or leaf_key == np.inf or (backwards and t == 1.0):
             break  # nothing pending comes before it either
@@ -941,6 +934,26 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
         t, best_a, best_b = known, known_a, known_b  # no certified search came earlier
     return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
+
+
+@njit(cache=True, inline="always")
+def _try_next_triangle_pair(pending, bound, t, best_a, best_b, backwards, faces, face_a, face_b, world0, world1,
+                            world_a, world_b, motion_a, motion_b, time_tol, dist_tol, corners, work, counts):
+    """One step of a one-sided search (_one_sided_window, _best_first_window): pops the
+    pending triangle pair with the smallest key and searches it for its first contact
+    (backwards: last) that can move the contact found so far, at t (pair best_a, best_b).
+    Returns (done, t, best_a, best_b): done when that key lies beyond ``bound`` or,
+    backwards, t is already the step's end (nothing left can move the answer)."""
+    key, tri_a, tri_b = pending_pop(pending)
+    if key > bound or (backwards and t == 1.0):
+        return True, t, best_a, best_b
+    found = candidate_contact(tri_a, tri_b, faces, face_a, face_b, world0, world1, world_a, world_b, motion_a,
+                              motion_b, time_tol, dist_tol, t, backwards, corners, work, counts)
+    if backwards:
+        return False, max(t, found), best_a, best_b
+    if comes_first(found, tri_a, tri_b, t, best_a, best_b):
+        return False, found, tri_a, tri_b
+    return False, t, best_a, best_b
 
 
 @njit(cache=True)  # a call of its own: rare, and kept out of scan_intervals' code
@@ -1004,17 +1017,11 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
         if na < 0:
             node_key = pending_first_key(nodes) if pending_size(nodes) > 0 else np.inf
             if pending_size(pending) > 0 and pending_first_key(pending) < node_key:
-                key, tri_a, tri_b = pending_pop(pending)
-                if key > bound or (backwards and t == 1.0):
+                done, t, best_a, best_b = _try_next_triangle_pair(
+                    pending, bound, t, best_a, best_b, backwards, faces, face_a, face_b, world0, world1, world_a,
+                    world_b, motion_a, motion_b, time_tol, dist_tol, corners, work, counts)
+                if done:
                     break
-                found = candidate_contact(tri_a, tri_b, faces, face_a, face_b, world0, world1, world_a, world_b,
-                                          motion_a, motion_b, time_tol, dist_tol, t, backwards, corners, work, counts)
-                if backwards:
-                    t = max(t, found)
-                elif comes_first(found, tri_a, tri_b, t, best_a, best_b):
-                    t = found
-                    best_a = tri_a
-                    best_b = tri_b
                 continue
             if node_key > bound or node_key == np.inf or (backwards and t == 1.0):
                 break  # nothing pending comes before it either

@@ -271,16 +271,23 @@ def _screw_poses(m0, m1, samples):
 
 
 @pytest.mark.parametrize("turn_deg", [0.0, 0.5])
-def test_probed_search_of_a_patch_lifting_off_keeps_every_sampled_contact(tmp_path, monkeypatch, turn_deg):
-    """A lid pressed into a plate and lifted off it at every other frame, searched with
-    probes (config.PROBED_FACES lowered below the plates' 3 200 triangles): frame tests
-    inside each step find a moment the plates touch, and the swept descent covers only
-    the rest of the step. Against the discrete scan of the same motion sampled 64 times
-    per step (scipy's screw interpolation; an exact predicate at each sample): every
-    sampled contact lies in a reported interval, and each interval's ends lie within a
-    sample (plus the time tolerance) of the sampled ones. Against the same scan without
-    probes: the same intervals to within the time tolerance, with fewer leaf pairs
-    tested; with two workers and through --triangle-pairs, the same output bit for bit."""
+@pytest.mark.parametrize("search", ["probed", "best-first"])
+def test_search_for_one_end_of_a_patch_lifting_off_keeps_every_sampled_contact(tmp_path, monkeypatch, search,
+                                                                               turn_deg):
+    """A lid pressed into a plate and lifted off it at every other frame, each end of a
+    contact searched for on its own (config.PROBED_FACES lowered below the plates' 3 200
+    triangles). "probed" (the plates have leaf boxes): frame tests inside each step find
+    a moment the plates touch, and the swept descent covers only the rest of the step.
+    "best-first" (no leaf boxes: config.LEAF_BOX_TRIANGLES = 0): node pairs taken in the
+    order their windows reach the contact found, not a whole swept descent. Against the
+    discrete scan of the same motion sampled 64 times per step (scipy's screw
+    interpolation; an exact predicate at each sample): every sampled contact lies in a
+    reported interval, and each interval's ends lie within a sample (plus the time
+    tolerance) of the sampled ones. Against the same scan with a whole descent: the same
+    intervals to within the time tolerance, with fewer leaf pairs tested; with two
+    workers and through --triangle-pairs, the same output bit for bit."""
+    if search == "best-first":
+        monkeypatch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
     meshes, traj = _chattering_plates(tmp_path, 7, turn_deg)
     with h5py.File(traj, "r") as f:
         matrix = f["poses/matrix"][:]
@@ -289,13 +296,13 @@ def test_probed_search_of_a_patch_lifting_off_keeps_every_sampled_contact(tmp_pa
         patch.setattr(config, "PROBED_FACES", 10 ** 9)
         plain = collide.scan(meshes, traj, mode="continuous", workers=1)
     monkeypatch.setattr(config, "PROBED_FACES", 0)
-    probed = collide.scan(meshes, traj, mode="continuous", workers=1)
-    c = probed.contacts
+    searched = collide.scan(meshes, traj, mode="continuous", workers=1)
+    c = searched.contacts
     assert c["t_begin"].size == 4
     tol = config.TIME_TOL * dt
     for name in ("t_begin", "t_end"):
         np.testing.assert_allclose(c[name], plain.contacts[name], rtol=0, atol=tol + 1e-15, err_msg=name)
-    assert probed.stats["work"]["leaf_pairs"] < plain.stats["work"]["leaf_pairs"] / 2
+    assert searched.stats["work"]["leaf_pairs"] < plain.stats["work"]["leaf_pairs"] / 2
     for other in (collide.scan(meshes, traj, mode="continuous", workers=2),
                   collide.scan(meshes, traj, mode="continuous", triangle_pairs=True)):
         for name, column in c.items():
@@ -316,6 +323,21 @@ def test_probed_search_of_a_patch_lifting_off_keeps_every_sampled_contact(tmp_pa
         assert end >= last - 1e-12 and end <= last + step + tol, (k, end, last)
 
 
+def _record_frame_hits(monkeypatch):
+    """A list that gets, per scan, the sorted (frame, a, b) of the kernel's frame tests' hits."""
+    from collide import pipeline
+    from collide.rows import HIT_A, HIT_B, HIT_FRAME
+    frames_touching = []
+    run_steps = pipeline._run_steps
+
+    def recording(*args, **kwargs):
+        hits, *rest = run_steps(*args, **kwargs)
+        frames_touching.append(sorted(map(tuple, hits[:, [HIT_FRAME, HIT_A, HIT_B]].tolist())))
+        return (hits, *rest)
+    monkeypatch.setattr(pipeline, "_run_steps", recording)
+    return frames_touching
+
+
 @pytest.mark.parametrize("clear", [0.02, -0.01], ids=["lifted-at-odd-frames", "pressed-throughout"])
 def test_probed_search_whose_probes_all_give_up_is_the_plain_search(tmp_path, monkeypatch, clear):
     """With config.PROBE_LEAF_PAIRS = 0 every probe gives up at once, and so does the frame
@@ -325,16 +347,7 @@ def test_probed_search_whose_probes_all_give_up_is_the_plain_search(tmp_path, mo
     step's own), and the output equals the scan without probes bit for bit (and so do
     the frames found touching), both when contact ends or begins in every step and when
     the plates touch throughout."""
-    from collide import pipeline
-    from collide.rows import HIT_A, HIT_B, HIT_FRAME
-    frames_touching = []  # (frame, a, b) of each scan's frame tests (the kernel's hits)
-    run_steps = pipeline._run_steps
-
-    def recording(*args, **kwargs):
-        hits, *rest = run_steps(*args, **kwargs)
-        frames_touching.append(sorted(map(tuple, hits[:, [HIT_FRAME, HIT_A, HIT_B]].tolist())))
-        return (hits, *rest)
-    monkeypatch.setattr(pipeline, "_run_steps", recording)
+    frames_touching = _record_frame_hits(monkeypatch)
     meshes, traj = _chattering_plates(tmp_path, 7, 0.5, clear)
     with monkeypatch.context() as patch:
         patch.setattr(config, "PROBED_FACES", 10 ** 9)
@@ -353,55 +366,6 @@ def test_probed_search_whose_probes_all_give_up_is_the_plain_search(tmp_path, mo
     assert len(frames_touching[0]) == (4 if clear > 0 else 7)  # the frames the lid is pressed in
 
 
-@pytest.mark.parametrize("turn_deg", [0.0, 0.5])
-def test_best_first_search_of_a_patch_lifting_off_keeps_every_sampled_contact(tmp_path, monkeypatch, turn_deg):
-    """A lid pressed into a plate and lifted off it at every other frame, each end of a
-    contact searched best first (config.PROBED_FACES lowered below the plates' 3 200
-    triangles, and no leaf boxes: config.LEAF_BOX_TRIANGLES = 0): node pairs taken in the
-    order their windows reach the contact found, not a whole swept descent. Against the
-    discrete scan of the same motion sampled 64 times per step (scipy's screw
-    interpolation; an exact predicate at each sample): every sampled contact lies in a
-    reported interval, and each interval's ends lie within a sample (plus the time
-    tolerance) of the sampled ones. Against the same scan with a
-    whole descent: the same intervals to within the time tolerance, with fewer leaf
-    pairs tested; with two workers and through --triangle-pairs, the same output bit for
-    bit."""
-    monkeypatch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
-    meshes, traj = _chattering_plates(tmp_path, 7, turn_deg)
-    with h5py.File(traj, "r") as f:
-        matrix = f["poses/matrix"][:]
-        dt = float(f["time"][1] - f["time"][0])
-    with monkeypatch.context() as patch:
-        patch.setattr(config, "PROBED_FACES", 10 ** 9)
-        plain = collide.scan(meshes, traj, mode="continuous", workers=1)
-    monkeypatch.setattr(config, "PROBED_FACES", 0)
-    best_first = collide.scan(meshes, traj, mode="continuous", workers=1)
-    c = best_first.contacts
-    assert c["t_begin"].size == 4
-    tol = config.TIME_TOL * dt
-    for name in ("t_begin", "t_end"):
-        np.testing.assert_allclose(c[name], plain.contacts[name], rtol=0, atol=tol + 1e-15, err_msg=name)
-    assert best_first.stats["work"]["leaf_pairs"] < plain.stats["work"]["leaf_pairs"] / 2
-    for other in (collide.scan(meshes, traj, mode="continuous", workers=2),
-                  collide.scan(meshes, traj, mode="continuous", triangle_pairs=True)):
-        for name, column in c.items():
-            np.testing.assert_array_equal(other.contacts[name], column, err_msg=name)
-
-    samples = 64
-    poses = np.concatenate([_screw_poses(matrix[k, 0], matrix[k + 1, 0], samples)[:-1]
-                            for k in range(matrix.shape[0] - 1)] + [matrix[-1:, 0]])
-    times = dt * np.arange(poses.shape[0]) / samples
-    sampled = write_trajectory(tmp_path / "sampled.h5", times, ["lid"], matrix=poses[:, None])
-    reference = collide.scan(meshes, sampled, mode="discrete").contacts
-    assert reference["t_begin"].size == 4  # one run of touching samples per interval
-    step = dt / samples
-    for k in range(4):
-        begin, end = c["t_begin"][k], c["t_end"][k]
-        first, last = reference["t_begin"][k], reference["t_end"][k]
-        assert begin <= first + 1e-12 and first - step <= begin + tol, (k, begin, first)
-        assert end >= last - 1e-12 and end <= last + step + tol, (k, end, last)
-
-
 @pytest.mark.parametrize("clear", [0.02, -0.01], ids=["lifted-at-odd-frames", "pressed-throughout"])
 def test_frame_tests_on_a_budget_that_give_up_change_no_contact(tmp_path, monkeypatch, clear):
     """Between big meshes without leaf boxes (config.LEAF_BOX_TRIANGLES = 0: the ends of a
@@ -413,16 +377,7 @@ def test_frame_tests_on_a_budget_that_give_up_change_no_contact(tmp_path, monkey
     tolerance, as with the default budget, both when contact ends or begins in every step
     and when the plates touch throughout (then nothing is searched, and the work is the
     same)."""
-    from collide import pipeline
-    from collide.rows import HIT_A, HIT_B, HIT_FRAME
-    frames_touching = []  # (frame, a, b) of each scan's frame tests (the kernel's hits)
-    run_steps = pipeline._run_steps
-
-    def recording(*args, **kwargs):
-        hits, *rest = run_steps(*args, **kwargs)
-        frames_touching.append(sorted(map(tuple, hits[:, [HIT_FRAME, HIT_A, HIT_B]].tolist())))
-        return (hits, *rest)
-    monkeypatch.setattr(pipeline, "_run_steps", recording)
+    frames_touching = _record_frame_hits(monkeypatch)
     monkeypatch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
     meshes, traj = _chattering_plates(tmp_path, 7, 0.5, clear)
     with h5py.File(traj, "r") as f:

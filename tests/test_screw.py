@@ -436,24 +436,25 @@ def test_axis_test_never_parts_objects_that_touch(seed):
 
 
 def _boxes_overlap(placed_a, placed_b, box_a, box_b):
-    """Whether two boxes (lo, hi (2, 3) in their body frames) placed by 4x4 poses overlap:
-    the separating axis test over their 15 axes (an exact reference, in numpy)."""
+    """Whether two boxes (lo, hi (2, 3) in their body frames) placed by 4x4 poses overlap,
+    pose by pose (placed_a, placed_b: (S, 4, 4); returns bool (S,)): the separating axis
+    test over their 15 axes (an exact reference, in numpy)."""
     centres, axes, halves = [], [], []
     for m, (lo, hi) in ((placed_a, box_a), (placed_b, box_b)):
-        centres.append(apply(m, 0.5 * (lo + hi)))
-        axes.append(m[:3, :3])
+        centres.append(m[:, :3, :3] @ (0.5 * (lo + hi)) + m[:, :3, 3])
+        axes.append(m[:, :3, :3])
         halves.append(0.5 * (hi - lo))
-    candidates = [axes[0][:, i] for i in range(3)] + [axes[1][:, i] for i in range(3)]
-    candidates += [np.cross(axes[0][:, i], axes[1][:, j]) for i in range(3) for j in range(3)]
+    candidates = [axes[0][:, :, i] for i in range(3)] + [axes[1][:, :, i] for i in range(3)]
+    candidates += [np.cross(axes[0][:, :, i], axes[1][:, :, j]) for i in range(3) for j in range(3)]
+    apart = np.zeros(placed_a.shape[0], bool)
     for axis in candidates:
-        length = np.linalg.norm(axis)
-        if length < 1e-12:  # parallel edges: the face axes decide
-            continue
-        axis = axis / length
-        reach = sum(float(np.abs(axes[k].T @ axis) @ halves[k]) for k in range(2))
-        if abs(float((centres[1] - centres[0]) @ axis)) > reach:
-            return False
-    return True
+        length = np.linalg.norm(axis, axis=1)
+        usable = length >= 1e-12  # parallel edges: the face axes decide
+        axis = axis / np.where(usable, length, 1.0)[:, None]
+        reach = sum(np.abs(np.einsum("sij,si->sj", axes[k], axis)) @ halves[k] for k in range(2))
+        gap = np.abs(np.einsum("si,si->s", centres[1] - centres[0], axis))
+        apart |= usable & (gap > reach)
+    return ~apart
 
 
 @pytest.mark.parametrize("angle", [0.0, 0.05, 0.8, 2.0])
@@ -494,8 +495,9 @@ def test_node_pair_window_holds_every_moment_the_boxes_meet(angle):
         seen_from_b = rigid_pair_window(*nodes, dev_a, dev_b, False)  # one side only (inner nodes): looser
         assert seen_from_b[0] <= t_lo and t_hi <= seen_from_b[1] or t_lo > t_hi
         twists = [np.real(scipy_linalg.logm(e @ np.linalg.inv(s))) for s, e in ((a0, a1), (b0, b1))]
-        meets = np.array([_boxes_overlap(scipy_linalg.expm(t * twists[0]) @ a0, scipy_linalg.expm(t * twists[1]) @ b0,
-                                         (lo[0], hi[0]), (lo[1], hi[1])) for t in samples])
+        placed_a, placed_b = (scipy_linalg.expm(samples[:, None, None] * twist) @ start
+                              for twist, start in zip(twists, (a0, b0)))
+        meets = _boxes_overlap(placed_a, placed_b, (lo[0], hi[0]), (lo[1], hi[1]))
         if meets.any():
             for lo_t, hi_t in ((t_lo, t_hi), seen_from_b):
                 assert lo_t <= samples[meets].min() + 1e-9 and samples[meets].max() - 1e-9 <= hi_t, (lo_t, hi_t)

@@ -338,6 +338,64 @@ def _record_frame_hits(monkeypatch):
     return frames_touching
 
 
+@pytest.mark.parametrize("search", ["probed", "best-first"])
+@pytest.mark.parametrize("backwards", [False, True], ids=["contact-begins", "contact-ends"])
+def test_search_for_one_end_follows_the_arc_below_the_chord(monkeypatch, search, backwards):
+    """A thin rod (0.004 x 0.004 x 1, 768 triangles) over a flat static plate turns by 0.1
+    radian about a horizontal axis through its middle while sinking by 6e-4: its tip
+    starts 3e-4 above the plate and ends 3e-4 in it, but on the way it swings down by 6e-4
+    below the straight line between its two ends, so it reaches the plate at about a
+    tenth of the step, not at half of it. Backwards (the same motion reversed), the
+    contact ends at about nine tenths. Each end is searched on its own
+    (config.PROBED_FACES = 0; best first without leaf boxes). Reference: the lowest corner
+    of the rod along the exact screw motion (scipy's matrix exponential): the first (last)
+    moment it reaches the plate, and the first (last) it comes within the distance
+    tolerance of it (scene size below 10), by bisection on a grid of 2 001 moments: t_begin
+    lies between the latter less the time tolerance and the former, t_end likewise after.
+    A search whose node windows left out the arc (no deviation bound) answers about 0.54
+    (0.46)."""
+    import trimesh
+    from scipy import linalg, optimize
+    monkeypatch.setattr(config, "PROBED_FACES", 0)
+    if search == "best-first":
+        monkeypatch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
+    rod = trimesh.creation.box(extents=(0.004, 0.004, 1.0)).subdivide().subdivide().subdivide()
+    corners = np.array([[x, y, -0.5] for x in (-0.002, 0.002) for y in (-0.002, 0.002)])  # the tip's
+    plate = _wavy_plate(20, lambda x, y: 0.0 * x)
+    poses = []
+    for angle, height in ((-0.05, 3e-4), (0.05, -3e-4)):
+        pose = np.eye(4)
+        pose[:3, :3] = rotation_about([0.0, 1.0, 0.0], angle)
+        pose[:3, 3] = [0.3, 0.0, height - (corners @ pose[:3, :3].T)[:, 2].min()]  # lowest corner at height
+        poses.append(pose)
+    if backwards:
+        poses.reverse()
+    matrix = np.stack([np.stack([np.eye(4), pose]) for pose in poses])
+    meshes = {"plate": (np.asarray(plate.vertices), np.asarray(plate.faces)),
+              "rod": (np.asarray(rod.vertices), np.asarray(rod.faces))}
+    c = collide.scan(meshes, {"time": np.array([0.0, 1.0]), "names": ["plate", "rod"], "matrix": matrix},
+                     mode="continuous", workers=1).contacts
+    twist = np.real(linalg.logm(poses[1] @ np.linalg.inv(poses[0])))
+
+    def lowest(t):  # the rod's lowest point (a tip corner: the rod is convex) at fraction t
+        pose = linalg.expm(t * twist) @ poses[0]
+        return (corners @ pose[:3, :3].T + pose[:3, 3])[:, 2].min()
+    grid = np.linspace(0.0, 1.0, 2001)
+    heights = np.array([lowest(t) for t in grid])
+
+    def reaching(level):  # the first (backwards: last) moment the rod's lowest point is at level
+        below = np.flatnonzero(heights <= level)
+        k = below.max() if backwards else below.min() - 1
+        return optimize.brentq(lambda t: lowest(t) - level, grid[k], grid[k + 1], xtol=1e-14)
+    touching, near = reaching(0.0), reaching(10.0 * config.DIST_TOL_REL)
+    if backwards:
+        assert 0.8 < touching < 0.95 and c["t_begin"].tolist() == [0.0]
+        assert touching - 1e-12 <= c["t_end"][0] <= near + config.TIME_TOL
+    else:
+        assert 0.05 < touching < 0.2 and c["t_end"].tolist() == [1.0]
+        assert near - config.TIME_TOL <= c["t_begin"][0] <= touching + 1e-12
+
+
 @pytest.mark.parametrize("clear", [0.02, -0.01], ids=["lifted-at-odd-frames", "pressed-throughout"])
 def test_probed_search_whose_probes_all_give_up_is_the_plain_search(tmp_path, monkeypatch, clear):
     """With config.PROBE_LEAF_PAIRS = 0 every probe gives up at once, and so does the frame

@@ -107,15 +107,16 @@ def jumping_scene(rng, n_frames=4):
                     "matrix": keep_some_static(rng, matrix)}
 
 
-def moving_scene(rng, n_frames=4):
-    """Meshes and a trajectory turning up to 60 degrees and moving up to 0.4 per frame."""
+def moving_scene(rng, n_frames=4, max_turn_deg=60.0):
+    """Meshes and a trajectory turning up to ``max_turn_deg`` degrees and moving up to 0.4
+    per frame."""
     meshes = random_meshes(rng)
     matrix = np.zeros((n_frames, len(meshes), 4, 4))
     for o in range(len(meshes)):
         pose = rigid_transform(rotation_about(rng.normal(size=3), rng.uniform(0, np.pi)), rng.uniform(-0.5, 0.5, 3))
         for k in range(n_frames):
             matrix[k, o] = pose
-            step = rigid_transform(rotation_about(rng.normal(size=3), rng.uniform(0, np.radians(60))),
+            step = rigid_transform(rotation_about(rng.normal(size=3), rng.uniform(0, np.radians(max_turn_deg))),
                                    rng.uniform(-0.4, 0.4, 3))
             pose = step @ pose
     return meshes, {"time": np.arange(n_frames, dtype=float), "names": list(meshes),
@@ -230,22 +231,38 @@ def test_continuous_scan_holds_every_sampled_contact(seeds, interpolation, searc
     distance). Searches of one end of a contact: all candidates at once, in time order
     however few leaf pairs (config.ONE_SIDED_LEAVES = 0), or, however small the meshes
     (config.PROBED_FACES = 0; screw motion only), starting with probes (meshes with leaf
-    boxes) or best first (none: config.LEAF_BOX_TRIANGLES = 0)."""
+    boxes) or best first (none: config.LEAF_BOX_TRIANGLES = 0). Those two turn at most 2
+    degrees per frame (faster turns take sub-steps, which search the whole step); they
+    also agree with the whole search to within the time tolerance, and each block of
+    seeds has one where they change the work (so they ran)."""
     fcl = pytest.importorskip("fcl")
     pytest.importorskip("scipy")
+    one_end = search in ("probed", "best-first")
     if search == "one-sided-in-time-order":
         monkeypatch.setattr(config, "ONE_SIDED_LEAVES", 0)
-    elif search in ("probed", "best-first"):
+    elif one_end:
         monkeypatch.setattr(config, "PROBED_FACES", 0)
         if search == "best-first":
             monkeypatch.setattr(config, "LEAF_BOX_TRIANGLES", 0)
-    sampled_total = 0
+    sampled_total = searched = 0
     for seed in seeds:
         rng = np.random.default_rng(seed)
-        meshes, trajectory = moving_scene(rng)
+        meshes, trajectory = moving_scene(rng, max_turn_deg=2.0 if one_end else 60.0)
         names = trajectory["names"]
-        c = collide.scan(meshes, trajectory, mode="continuous", interpolation=interpolation, warn_angle=180,
-                         workers=int(rng.integers(1, 3))).contacts
+        workers = int(rng.integers(1, 3))
+        result = collide.scan(meshes, trajectory, mode="continuous", interpolation=interpolation, warn_angle=180,
+                              workers=workers)
+        c = result.contacts
+        if one_end:
+            with monkeypatch.context() as patch:
+                patch.setattr(config, "PROBED_FACES", 10 ** 9)
+                whole = collide.scan(meshes, trajectory, mode="continuous", warn_angle=180, workers=workers)
+            searched += whole.stats["work"] != result.stats["work"]
+            for name in ("object_a", "object_b", "frame_begin", "frame_end"):
+                np.testing.assert_array_equal(c[name], whole.contacts[name], err_msg=f"{seed} {name}")
+            for name in ("t_begin", "t_end"):
+                np.testing.assert_allclose(c[name], whole.contacts[name], rtol=0, atol=config.TIME_TOL + 1e-15,
+                                           err_msg=f"{seed} {name}")
 
         def covered(time, a, b):
             return ((c["object_a"] == a) & (c["object_b"] == b) & (c["t_begin"] <= time + SLACK)
@@ -270,6 +287,7 @@ def test_continuous_scan_holds_every_sampled_contact(seeds, interpolation, searc
             assert min(gaps) < 1e-6, (seed, a, b, begin, gaps)
         sampled_total += len(sampled)
     assert sampled_total > 0
+    assert searched > 0 or not one_end
 
 
 @pytest.mark.parametrize("seeds", seed_blocks(4, 1, 300))

@@ -77,10 +77,12 @@ PROBED_FACES = 4096
 #: a touching triangle pair (a probe that looks near a pair an earlier probe found, after
 #: an eighth of them: swept.NEAR_PROBE_SHARE). A probe that gives up counts as if the
 #: objects did not touch, and such a frame test leaves the pair to the search without
-#: it (its frame test from the swept leaf pairs): the answer stays right, only more of
-#: the step is searched. A contact near the pair looked at first is usually found in the
-#: first few leaf pairs, while proving that nothing touches would take all the leaf
-#: pairs near the patch. Leaf pairs (0: every probe and such frame test gives up at once).
+#: it (its frame test from the swept leaf pairs): the answer stays certified, and more of
+#: the step is searched; the contact times may then differ by up to the time tolerance
+#: (and the triangle pair named may differ), the same on every run. A contact near the
+#: pair looked at first is usually found in the first few leaf pairs, while proving that
+#: nothing touches would take all the leaf pairs near the patch. Leaf pairs (0: every
+#: probe and such frame test gives up at once).
 PROBE_LEAF_PAIRS = 64
 
 #: Linear-vertex interpolation: scan warns where the straight vertex paths depart

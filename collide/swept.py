@@ -88,7 +88,6 @@ from .broad import (
     RULE_SWEPT_RIGID,
     abs_rotation,
     leaf_pair_windows,
-    leaves_apart_along_normals,
     node_box,
     opens_a,
     oriented_boxes_overlap,
@@ -970,8 +969,10 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
     into child pairs (leaf pairs into their triangle pairs), keeping only those whose
     window reaches the contact found so far. Every contact of a node pair's triangles
     lies in its window, so once the smallest key lies beyond the contact found, nothing
-    left can move it. Returns (buffers, t, tri_a, tri_b): t = inf (backwards -inf) and
-    (-1, -1) when none touches; tri_a, tri_b forwards only."""
+    left can move it. Leaf pairs are not checked along their leaves' normals: pairs of
+    meshes that both have oriented leaf boxes take _probed_window instead (_pair_window).
+    Returns (buffers, t, tri_a, tri_b): t = inf (backwards -inf) and (-1, -1) when none
+    touches; tri_a, tri_b forwards only."""
     lo, hi, first, count = ps.node_lo, ps.node_hi, ps.node_first, ps.node_count
     scratch = state.pair
     start_descent(ps, rp0, rp1, motion, a, b, scratch, buffers.stack)
@@ -984,9 +985,6 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
     dev_a, dev_b = rigid_deviations(lo, hi, pose, scratch.motion, buffers.stack, np.int64(1))
     margin_a = pair_margin + dev_a
     margin_b = pair_margin + dev_b
-    shift_a = ps.leaf_box_shift[ps.object_mesh[a]]
-    shift_b = ps.leaf_box_shift[ps.object_mesh[b]]
-    boxes = shift_a != NO_LEAF_BOXES and shift_b != NO_LEAF_BOXES
     nodes = new_pending()
     pending = new_pending()
     one = np.empty((1, 2), np.int64)
@@ -996,7 +994,7 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
     face_a = ps.face_start[ps.object_mesh[a]]
     face_b = ps.face_start[ps.object_mesh[b]]
     # the arrays the loop reads, bound once (each read of a tuple's array field counts a reference)
-    faces, prim_ids, leaf_box = ps.faces, ps.prim_ids, ps.leaf_box
+    faces, prim_ids = ps.faces, ps.prim_ids
     world0, world1, stamp0, stamp1 = state.world0, state.world1, state.stamp0, state.stamp1
     motion_a, motion_b = motion[a], motion[b]
     world_a, world_b = ps.world_start[a], ps.world_start[b]
@@ -1036,9 +1034,6 @@ def _best_first_window(ps, rp0, rp1, motion, k, a, b, static, backwards, pair_ma
         one[0, 0] = na
         one[0, 1] = nb
         na = nb = np.int64(-1)
-        if boxes and leaves_apart_along_normals(leaf_box, one[0, 0] + shift_a, one[0, 1] + shift_b, rp_a0, rp_a1,
-                                                rp_b0, rp_b1, margin_a, margin_b):
-            continue
         counts[COUNT_LEAF_PAIRS] += 1
         place_pair_leaves(ps, rp0, rp1, k, a, b, static, one, n_one, stamp0, world0, stamp1, world1)
         leaf_a, leaf_b = one[0, 0], one[0, 1]
@@ -1189,7 +1184,7 @@ def scan_intervals(ps, poses, static, pairs, touching, touching_tris, step_start
     large both meshes of a pair whose search of one end starts with probes or runs best
     first; moves contact times by at most time_tol); probe_leaf_pairs:
     config.PROBE_LEAF_PAIRS (when a probe, or the frame test at a step's end of such a
-    pair apart at its start, gives up; only affects speed). Returns (hits int64 (H,
+    pair apart at its start, gives up; moves contact times by at most time_tol). Returns (hits int64 (H,
     HIT_WIDTH), the frame tests' hits (none without find_frames; the first pair
     found, but the smallest at frame 0 when step_start is 0: a contact that begins
     there reports it without a search of its own, HIT_SMALLEST),

@@ -754,7 +754,6 @@ def _moving_node_box(box, rp0, rp1, abs0, abs1):
             max(abs(y0), abs(y1), abs(y2), abs(y3)), max(abs(z0), abs(z1), abs(z2), abs(z3)))
 
 
-
 @njit(cache=True, inline="always")
 def rigid_placed_node(lo, hi, node, placing):
     """A node's box as rigid_pair_window reads it: (its own box (node_box 6-tuple), and
@@ -788,6 +787,7 @@ def _still_node_box(box):
     """A node's box (node_box 6-tuple) that does not move, in windows.moving_box's layout."""
     return (box[0], box[3], box[0], box[3], box[1], box[4], box[1], box[4], box[2], box[5], box[2], box[5],
             max(abs(box[0]), abs(box[3])), max(abs(box[1]), abs(box[4])), max(abs(box[2]), abs(box[5])))
+
 
 @njit(cache=True)
 def with_room(rows, n, need):

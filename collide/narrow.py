@@ -203,7 +203,6 @@ def swept_candidates(leaves, n_leaves, first, count, prim_ids, faces, face_base_
     return out, n, windows[:n]
 
 
-
 @njit_borrowing
 def leaf_pair_candidates(la, lb, first, count, prim_ids, faces, face_base_a, face_base_b, world0, world1,
                          world_base_a, world_base_b, motion_a, motion_b, dist_tol, after, before, side_b, out, windows,
@@ -239,6 +238,7 @@ def leaf_pair_candidates(la, lb, first, count, prim_ids, faces, face_base_a, fac
                 windows[n, 1] = t_hi
                 n += 1
     return n
+
 
 class Pending(NamedTuple):
     """Triangle pairs (or node pairs) waiting to be tried, first the smallest (key, tri_a,

@@ -934,7 +934,6 @@ def _one_sided_window(ps, rp0, rp1, motion, k, a, b, static, n_leaves, backwards
     return Buffers(buffers.stack, leaves, tri_pairs, buffers.frame_pairs), t, best_a, best_b
 
 
-
 @njit(cache=True, inline="always")
 def _try_next_triangle_pair(pending, bound, t, best_a, best_b, backwards, faces, face_a, face_b, world0, world1,
                             world_a, world_b, motion_a, motion_b, time_tol, dist_tol, corners, work, counts):
@@ -1145,9 +1144,8 @@ def compile_contact_searches(ps, poses, static, time_tol, dist_tol):
     """Compiles (and caches) the three searches for a contact's moment that scan_intervals
     calls, _one_sided_window, _best_first_window and narrow.candidates_contact_window
     (with the CCD below them), with the argument types it calls them with, without
-    running them: for
-    collide.warmup, so that another process can compile them while scan_intervals
-    compiles the rest. Takes scan_intervals' ps, poses, static, time_tol and dist_tol;
+    running them: for collide.warmup, so that another process can compile them while
+    scan_intervals compiles the rest. Takes scan_intervals' ps, poses, static, time_tol and dist_tol;
     returns nothing."""
     n_objects = poses.shape[1]
     state, buffers, counts = _step_buffers(n_objects, ps.world_start[n_objects], np.bool_(True))
